@@ -1,0 +1,35 @@
+# Two commands work on a fresh machine: `make demo` and `make test`.
+# Both create .venv when it is missing and (re)install the project only when
+# pyproject.toml changed since the last install, so a second run starts at once.
+
+PYTHON ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed
+export PYOPENGL_PLATFORM := egl
+export PIP_DISABLE_PIP_VERSION_CHECK := 1
+
+.PHONY: demo test bench install clean
+
+$(BIN)/python:
+	$(PYTHON) -m venv $(VENV)
+
+# torch==2.13.0 must come from the local CPU wheel (PIP_FIND_LINKS), never the CUDA build.
+$(STAMP): pyproject.toml | $(BIN)/python
+	$(BIN)/pip install --quiet --find-links /opt/wheels torch==2.13.0
+	$(BIN)/pip install --quiet --find-links /opt/wheels -e ".[test,ray]"
+	touch $(STAMP)
+
+install: $(STAMP)
+
+demo: $(STAMP)
+	$(BIN)/testbed run scenes/quickstart.yaml
+
+test: $(STAMP)
+	$(BIN)/python -m pytest -q -n 2
+
+bench: $(STAMP)
+	@for b in benchmarks/bench_*.py; do echo "== $$b"; $(BIN)/python $$b || exit 1; done
+
+clean:
+	rm -rf $(VENV) build *.egg-info
