@@ -1,0 +1,174 @@
+"""What a rotating multi-beam LiDAR is: beam table, firing pattern, range limits, error model.
+
+Presets come from the datasheet facts in shared/design/SENSORS.md. Every field is plain data
+(tuples, floats), so a spec is hashable and the ray table it implies is computed once.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+# HDL-64E S2 as mounted on the KITTI car: an upper block of 32 lasers from +2.0 deg down in
+# 1/3 deg steps and a lower block of 32 lasers ending at -24.9 deg in about 1/2 deg steps.
+_HDL64E_UPPER = tuple(round(2.0 - i / 3.0, 4) for i in range(32))  # +2.0 ... -8.333
+_HDL64E_LOWER = tuple(round(-8.83 - i * (24.9 - 8.83) / 31.0, 4) for i in range(32))  # -8.83 ... -24.9
+HDL64E_ELEVATIONS = _HDL64E_UPPER + _HDL64E_LOWER
+
+HDL32E_ELEVATIONS = tuple(round(10.67 - i * (10.67 + 30.67) / 31.0, 4) for i in range(32))
+
+VLP32C_ELEVATIONS = tuple(sorted((
+    -25.0, -15.639, -11.31, -8.843, -7.254, -6.148, -5.333, -4.667, -4.0, -3.667, -3.333, -3.0,
+    -2.667, -2.333, -2.0, -1.667, -1.333, -1.0, -0.667, -0.333, 0.0, 0.333, 0.667, 1.0, 1.333,
+    1.667, 2.333, 3.333, 4.667, 7.0, 10.333, 15.0), reverse=True))
+
+VLP16_ELEVATIONS = tuple(float(15 - 2 * i) for i in range(16))
+
+
+@dataclass(frozen=True)
+class LidarSpec:
+    """One sensor model. Rings are numbered from the top beam (ring 0, highest elevation) down,
+    the order of KITTI's .bin files.
+
+    Detection follows a lidar equation for an extended Lambertian target,
+    P = rho * cos(incidence) * exp(-2 * beta * d) * (d_ref / d) ** range_exponent, and a return
+    is detected when P >= the power of a 10 % target at normal incidence at `dark_range` in
+    clear air. `range_exponent` is fitted to two datasheet points (rho_bright at bright_range
+    and 10 % at dark_range), so dark, far surfaces vanish first. `max_range` is a hard cut-off
+    on top of that (the sensor reports nothing farther), which range sweeps lower.
+    """
+
+    name: str
+    elevations_deg: tuple[float, ...]  # per beam, ring 0 first (descending)
+    azimuth_step_deg: float
+    rotation_hz: float = 10.0
+    min_range: float = 0.9
+    max_range: float = 120.0
+    # vehicle-from-LiDAR mount (x fwd, y left, z up from the road under the rear axle); the
+    # scene generator uses it to place the sensor. scan() uses world.lidar_pose, so a rescan
+    # keeps the recorded pose and with it the calibration.
+    mount_xyz: tuple[float, float, float] = (0.0, 0.0, 1.73)
+    noise_sigma: float = 0.015  # per-ray Gaussian range noise (m)
+    bias_sigma: float = 0.01  # fixed per-laser range bias (m), drawn once per sensor unit
+    unit_seed: int = 0  # the sensor unit: seeds the per-laser biases, constant across frames
+    dropout: float = 0.02  # random loss of a detected return
+    dark_range: float = 50.0  # range on a 10 % target (datasheet)
+    bright_range: float = 120.0  # range on a rho_bright target (datasheet)
+    rho_bright: float = 0.8
+    detection: bool = True  # False: keep every hit within range (no power threshold)
+    saturation_range: float = 5.0  # closer than this the receiver over-reads (reflectance up)
+    motion: bool = True  # per-ray time: ego and actor motion during the sweep
+    weather: bool = True  # apply world.weather (fog, rain)
+
+    def __post_init__(self) -> None:
+        el = np.asarray(self.elevations_deg, dtype=float)
+        if el.ndim != 1 or len(el) == 0:
+            raise ValueError(f"LidarSpec {self.name!r}: elevations_deg must be a non-empty list")
+        if np.any(np.diff(el) >= 0):
+            raise ValueError(f"LidarSpec {self.name!r}: elevations_deg must be strictly "
+                             "descending (ring 0 = top beam)")
+        if len(el) > 255:
+            raise ValueError(f"LidarSpec {self.name!r}: at most 255 beams (ring is uint8)")
+        if not 0 < self.azimuth_step_deg <= 10:
+            raise ValueError(f"LidarSpec {self.name!r}: azimuth_step_deg must be in (0, 10]")
+        if not 0 <= self.min_range < self.max_range:
+            raise ValueError(f"LidarSpec {self.name!r}: need 0 <= min_range < max_range")
+        if self.rotation_hz <= 0:
+            raise ValueError(f"LidarSpec {self.name!r}: rotation_hz must be > 0")
+        if not 0 <= self.dropout < 1:
+            raise ValueError(f"LidarSpec {self.name!r}: dropout must be in [0, 1)")
+        if not 0 < self.dark_range < self.bright_range or not 0.1 < self.rho_bright <= 1:
+            raise ValueError(f"LidarSpec {self.name!r}: need 0 < dark_range < bright_range and "
+                             "0.1 < rho_bright <= 1")
+
+    @property
+    def beams(self) -> int:
+        return len(self.elevations_deg)
+
+    @property
+    def columns(self) -> int:
+        """Firings per revolution per laser."""
+        return int(round(360.0 / self.azimuth_step_deg))
+
+    @property
+    def period(self) -> float:
+        return 1.0 / self.rotation_hz
+
+    @property
+    def range_exponent(self) -> float:
+        """gamma with rho_bright / bright_range**gamma == 0.1 / dark_range**gamma."""
+        return math.log(self.rho_bright / 0.1) / math.log(self.bright_range / self.dark_range)
+
+    def power(self, rho_cos: np.ndarray, dist: np.ndarray, beta: float = 0.0) -> np.ndarray:
+        """Received power relative to the detection threshold (detected where >= 1)."""
+        g = self.range_exponent
+        rel = rho_cos / 0.1 * (self.dark_range / np.maximum(dist, 1e-3)) ** g
+        return rel * np.exp(-2.0 * beta * dist) if beta > 0 else rel
+
+    def laser_biases(self) -> np.ndarray:
+        """The unit's fixed per-laser range biases (m), the same for every frame it scans."""
+        return np.random.default_rng(self.unit_seed).normal(0.0, self.bias_sigma, self.beams)
+
+    def ideal(self) -> LidarSpec:
+        """The same geometry with every error source off: exact ranges, all returns kept."""
+        return replace(self, noise_sigma=0.0, bias_sigma=0.0, dropout=0.0, motion=False,
+                       weather=False, detection=False)
+
+
+def _subsample(elev: tuple[float, ...], beams: int, name: str) -> tuple[float, ...]:
+    n = len(elev)
+    if beams == n:
+        return elev
+    if beams <= 0 or beams > n or n % beams:
+        raise ValueError(f"preset {name!r} has {n} beams; beams={beams} must divide {n} "
+                         f"(keeps every {n}//beams-th laser, like reduce-beams); use the "
+                         "'uniform' preset for any other beam count")
+    return elev[:: n // beams]
+
+
+def preset(name: str, beams: int | None = None, max_range: float | None = None,
+           fov_deg: tuple[float, float] = (2.0, -24.9)) -> LidarSpec:
+    """A named sensor.
+
+    On a real preset `beams=N` keeps every (native/N)-th laser of its table (rings 0, k, 2k, ...),
+    exactly what `testbed reduce-beams` does to a recorded scan, so a rescan with fewer beams and
+    a reduced scan are the same sensor. N must divide the native count. `uniform` spaces
+    `beams` (default 64) lasers evenly over `fov_deg` (top, bottom), with the HDL-64E's firing
+    rate, range and error model.
+    """
+    key = name.lower().replace("-", "").replace("_", "")
+    if key == "hdl64e":
+        spec = LidarSpec("hdl64e", HDL64E_ELEVATIONS, azimuth_step_deg=0.18, max_range=120.0,
+                         noise_sigma=0.015, bias_sigma=0.01, dark_range=50.0, bright_range=120.0)
+    elif key == "hdl32e":
+        spec = LidarSpec("hdl32e", HDL32E_ELEVATIONS, azimuth_step_deg=0.16, max_range=100.0,
+                         noise_sigma=0.015, bias_sigma=0.01, dark_range=40.0, bright_range=100.0)
+    elif key == "vlp32c":
+        spec = LidarSpec("vlp32c", VLP32C_ELEVATIONS, azimuth_step_deg=0.2, max_range=200.0,
+                         noise_sigma=0.02, bias_sigma=0.015, dark_range=80.0, bright_range=200.0)
+    elif key == "vlp16":
+        spec = LidarSpec("vlp16", VLP16_ELEVATIONS, azimuth_step_deg=0.2, max_range=100.0,
+                         noise_sigma=0.02, bias_sigma=0.015, dark_range=40.0, bright_range=100.0)
+    elif key == "uniform":
+        n = 64 if beams is None else int(beams)
+        top, bottom = float(fov_deg[0]), float(fov_deg[1])
+        if n < 1 or not top > bottom:
+            raise ValueError(f"uniform preset: need beams >= 1 and fov top > bottom, got "
+                             f"{n}, {fov_deg}")
+        elev = (top,) if n == 1 else tuple(float(e) for e in np.linspace(top, bottom, n))
+        spec = LidarSpec(f"uniform{n}", elev, azimuth_step_deg=0.18, max_range=120.0)
+        beams = None
+    else:
+        raise ValueError(f"unknown LiDAR preset {name!r}; choose hdl64e, hdl32e, vlp32c, vlp16 "
+                         "or uniform")
+    if beams is not None and beams != spec.beams:
+        spec = replace(spec, name=f"{spec.name}-{beams}", elevations_deg=_subsample(
+            spec.elevations_deg, int(beams), spec.name))
+    if max_range is not None:
+        spec = replace(spec, max_range=float(max_range))
+    return spec
+
+
+PRESETS = ("hdl64e", "hdl32e", "vlp32c", "vlp16", "uniform")

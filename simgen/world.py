@@ -1,0 +1,113 @@
+"""The world: the single source of truth every label, image and LiDAR point derives from.
+
+World frame: right-handed, metres, x forward along the ego lane, y left, z up, the road
+surface at z = 0 under the ego vehicle. Time t = 0 is the camera trigger, which is also
+the instant the rotating LiDAR faces forward (as in KITTI); a sweep spans
+[-T/2, T/2] for rotation period T.
+
+Actor frame: origin at the bottom-face centre of the actor's 3D box, x along its length
+(forward), y along its width (left), z up. The label box is the exact extent of the
+actor's mesh in this frame.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import trimesh
+
+
+@dataclass(frozen=True)
+class Material:
+    """Surface look for the camera and the LiDAR."""
+
+    name: str
+    color: tuple[float, float, float]  # linear RGB in [0, 1]
+    reflectivity: float  # diffuse reflectivity at the LiDAR wavelength, in [0, 1]
+
+
+@dataclass
+class Part:
+    """One mesh with one material, in its owner's frame (actor frame or world frame)."""
+
+    mesh: trimesh.Trimesh
+    material: Material
+
+
+@dataclass(frozen=True)
+class Weather:
+    """One weather model per world, shared by the camera and the LiDAR.
+
+    fog_extinction is the atmospheric extinction coefficient beta (1/m); the
+    meteorological visibility is about 3 / beta. Light through fog falls as
+    exp(-beta d) one way, a LiDAR return as exp(-2 beta d). rain_rate in mm/h, wind in m/s.
+    """
+
+    fog_extinction: float = 0.0
+    rain_rate: float = 0.0
+    wind: float = 0.0
+
+    @property
+    def visibility(self) -> float:
+        return float("inf") if self.fog_extinction <= 0 else 3.0 / self.fog_extinction
+
+
+@dataclass
+class Actor:
+    """A labelled object: parts in its own frame, a pose at t = 0 and a constant motion."""
+
+    id: int  # > 0 and unique in its world; 0 means background
+    cls: str  # KITTI type: Car, Van, Truck, Pedestrian, Cyclist, Tram, Misc (Bus for roadside)
+    parts: list[Part]
+    pose: np.ndarray  # (4, 4) world-from-actor at t = 0
+    velocity: np.ndarray = field(default_factory=lambda: np.zeros(3))  # world frame, m/s
+    yaw_rate: float = 0.0  # rad/s about world z
+
+    def pose_at(self, t: float | np.ndarray) -> np.ndarray:
+        """World-from-actor pose(s) at time t under constant velocity and yaw rate.
+
+        Returns (4, 4) for scalar t and (N, 4, 4) for an array of times.
+        """
+        ts = np.atleast_1d(np.asarray(t, dtype=float))
+        poses = np.repeat(self.pose[None], len(ts), axis=0)
+        if self.yaw_rate != 0.0:
+            a = self.yaw_rate * ts
+            c, s = np.cos(a), np.sin(a)
+            rz = np.zeros((len(ts), 3, 3))
+            rz[:, 0, 0], rz[:, 0, 1], rz[:, 1, 0], rz[:, 1, 1], rz[:, 2, 2] = c, -s, s, c, 1.0
+            poses[:, :3, :3] = rz @ self.pose[:3, :3]
+        poses[:, :3, 3] += ts[:, None] * np.asarray(self.velocity)[None, :]
+        return poses[0] if np.ndim(t) == 0 else poses
+
+    def mesh(self) -> trimesh.Trimesh:
+        """All parts concatenated, in the actor frame."""
+        return trimesh.util.concatenate([p.mesh for p in self.parts])
+
+
+@dataclass
+class World:
+    """Actors, static scenery and the ego sensors' motion; everything else is derived.
+
+    lidar_pose is world-from-LiDAR at t = 0 (LiDAR frame: x forward, y left, z up).
+    The ego vehicle (and with it every sensor) moves with ego_velocity (world frame).
+    """
+
+    actors: list[Actor]
+    static: list[Part]  # road, markings, curbs, buildings, trees, poles, fences: world frame
+    weather: Weather
+    lidar_pose: np.ndarray
+    ego_velocity: np.ndarray = field(default_factory=lambda: np.zeros(3))
+
+    def lidar_pose_at(self, t: float | np.ndarray) -> np.ndarray:
+        """World-from-LiDAR pose(s) of the moving ego sensor at time t."""
+        ts = np.atleast_1d(np.asarray(t, dtype=float))
+        poses = np.repeat(self.lidar_pose[None], len(ts), axis=0)
+        poses[:, :3, 3] += ts[:, None] * np.asarray(self.ego_velocity)[None, :]
+        return poses[0] if np.ndim(t) == 0 else poses
+
+    def actor(self, actor_id: int) -> Actor:
+        for a in self.actors:
+            if a.id == actor_id:
+                return a
+        raise KeyError(f"no actor with id {actor_id}")
