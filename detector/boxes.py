@@ -64,13 +64,14 @@ class Letterbox:
         return b * np.array([sx, sy, sx, sy]) + np.array([self.pad_x, self.pad_y, self.pad_x, self.pad_y])
 
     def inverse(self, boxes: np.ndarray, clip: bool = True) -> np.ndarray:
-        """Network-input xyxy boxes (N,4) -> source-image pixels (clipped to the image)."""
+        """Network-input xyxy boxes (N,4) -> source-image pixels, clipped as KITTI labels are
+        (to [0, w - 1] x [0, h - 1], see kitti.boxes.project_boxes)."""
         sx, sy = self.scale
         b = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
         out = (b - np.array([self.pad_x, self.pad_y, self.pad_x, self.pad_y])) / np.array([sx, sy, sx, sy])
         if clip:
-            out[:, [0, 2]] = out[:, [0, 2]].clip(0, self.src_w)
-            out[:, [1, 3]] = out[:, [1, 3]].clip(0, self.src_h)
+            out[:, [0, 2]] = out[:, [0, 2]].clip(0, self.src_w - 1)
+            out[:, [1, 3]] = out[:, [1, 3]].clip(0, self.src_h - 1)
         return out
 
 

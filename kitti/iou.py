@@ -2,16 +2,14 @@
 
 Bird's-eye overlap is the exact area of the intersection of two rotated rectangles in the camera
 x-z plane, found by clipping one rectangle against the other's four half-planes (Sutherland-Hodgman)
-for all candidate pairs at once. Pairs whose circumscribed circles (or, in 3D, y extents) do not
+in a compiled loop over the candidate pairs. Pairs whose circumscribed circles (or, in 3D, y extents) do not
 meet are never clipped. Identical boxes give 1 to rounding, disjoint boxes 0.
 """
 
 from __future__ import annotations
 
+import numba
 import numpy as np
-
-_CHUNK = 1 << 16  # pairs clipped at once: bounds memory at a few tens of MB
-
 
 def iou_2d(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """(N, M) IoU of axis-aligned [x1, y1, x2, y2] boxes (continuous areas, no +1)."""
@@ -40,40 +38,47 @@ def bev_corners(boxes7: np.ndarray) -> np.ndarray:
     return np.stack([x, z], axis=2)
 
 
-def _clip_area(subj: np.ndarray, clip: np.ndarray) -> np.ndarray:
-    """Intersection areas of P convex quads `subj` (P,4,2) with convex CCW quads `clip` (P,4,2)."""
-    with np.errstate(divide="ignore", invalid="ignore"):  # 0/0 only in slots that are dropped
-        return _clip_area_unchecked(subj, clip)
+@numba.njit(cache=True, nogil=True)
+def _clip_areas(ca: np.ndarray, cb: np.ndarray, ia: np.ndarray, ib: np.ndarray) -> np.ndarray:
+    """Intersection areas of convex CCW quads ca[ia[k]] and cb[ib[k]] (Sutherland-Hodgman).
 
-
-def _clip_area_unchecked(subj: np.ndarray, clip: np.ndarray) -> np.ndarray:
-    p = len(subj)
-    poly = np.zeros((p, 8, 2))
-    poly[:, :4] = subj
-    n = np.full(p, 4)
-    idx = np.arange(8)[None, :]
-    rows = np.arange(p)[:, None]
-    for k in range(4):
-        e0, e1 = clip[:, k], clip[:, (k + 1) % 4]
-        d = e1 - e0
-        # side > 0: left of the directed edge, inside a CCW polygon
-        side = d[:, None, 0] * (poly[..., 1] - e0[:, None, 1]) - d[:, None, 1] * (poly[..., 0] - e0[:, None, 0])
-        live = idx < n[:, None]
-        nxt = np.where(idx + 1 < n[:, None], idx + 1, 0)
-        side_n = side[rows, nxt]
-        inside, inside_n = side >= 0, side_n >= 0
-        t = side / (side - side_n)
-        cross_pt = poly + t[..., None] * (poly[rows, nxt] - poly)
-        cand = np.stack([poly, cross_pt], axis=2).reshape(p, 16, 2)
-        keep = np.stack([inside & live, (inside != inside_n) & live], axis=2).reshape(p, 16)
-        order = np.argsort(~keep, axis=1, kind="stable")[:, :8]
-        poly = cand[rows, order]
-        n = np.minimum(keep.sum(axis=1), 8)
-    live = idx < n[:, None]
-    nxt = np.where(idx + 1 < n[:, None], idx + 1, 0)
-    q = poly[rows, nxt]
-    cross = np.where(live, poly[..., 0] * q[..., 1] - poly[..., 1] * q[..., 0], 0.0)
-    return np.where(n >= 3, 0.5 * np.abs(cross.sum(axis=1)), 0.0)
+    Clipping a quad by four half-planes adds at most one vertex per plane, so 8 slots suffice.
+    """
+    out = np.zeros(len(ia))
+    poly = np.empty((8, 2))
+    nxt_poly = np.empty((8, 2))
+    for k in range(len(ia)):
+        i, j = ia[k], ib[k]
+        for v in range(4):
+            poly[v, 0], poly[v, 1] = ca[i, v, 0], ca[i, v, 1]
+        n = 4
+        for e in range(4):
+            e0x, e0z = cb[j, e, 0], cb[j, e, 1]
+            dx, dz = cb[j, (e + 1) % 4, 0] - e0x, cb[j, (e + 1) % 4, 1] - e0z
+            m = 0
+            for v in range(n):
+                w = v + 1 if v + 1 < n else 0
+                px, pz, qx, qz = poly[v, 0], poly[v, 1], poly[w, 0], poly[w, 1]
+                sp = dx * (pz - e0z) - dz * (px - e0x)  # > 0: left of the edge, inside
+                sq = dx * (qz - e0z) - dz * (qx - e0x)
+                if sp >= 0:
+                    nxt_poly[m, 0], nxt_poly[m, 1] = px, pz
+                    m += 1
+                if (sp >= 0) != (sq >= 0):
+                    t = sp / (sp - sq)
+                    nxt_poly[m, 0], nxt_poly[m, 1] = px + t * (qx - px), pz + t * (qz - pz)
+                    m += 1
+            poly, nxt_poly = nxt_poly, poly
+            n = m
+            if n < 3:
+                break
+        if n >= 3:
+            acc = 0.0
+            for v in range(n):
+                w = v + 1 if v + 1 < n else 0
+                acc += poly[v, 0] * poly[w, 1] - poly[v, 1] * poly[w, 0]
+            out[k] = 0.5 * abs(acc)
+    return out
 
 
 def _candidates(a: np.ndarray, b: np.ndarray, with_y: bool) -> tuple[np.ndarray, np.ndarray]:
@@ -100,10 +105,7 @@ def bev_intersection(a: np.ndarray, b: np.ndarray, with_y: bool = False) -> np.n
     out = np.zeros((len(a), len(b)))
     ia, ib = _candidates(a, b, with_y)
     if len(ia):
-        ca, cb = bev_corners(a), bev_corners(b)
-        for s in range(0, len(ia), _CHUNK):
-            i, j = ia[s:s + _CHUNK], ib[s:s + _CHUNK]
-            out[i, j] = _clip_area(ca[i], cb[j])
+        out[ia, ib] = _clip_areas(bev_corners(a), bev_corners(b), ia, ib)
     return out
 
 

@@ -53,6 +53,16 @@ class Weather:
         return float("inf") if self.fog_extinction <= 0 else 3.0 / self.fog_extinction
 
 
+@dataclass(frozen=True)
+class Light:
+    """Sun and time of day. Azimuth from world +x towards +y, elevation above the horizon."""
+
+    time: str = "day"  # day, dusk or night
+    sun_intensity: float = 1.0  # share of full sun
+    sun_elevation_deg: float = 45.0
+    sun_azimuth_deg: float = 30.0
+
+
 @dataclass
 class Actor:
     """A labelled object: parts in its own frame, a pose at t = 0 and a constant motion."""
@@ -63,6 +73,8 @@ class Actor:
     pose: np.ndarray  # (4, 4) world-from-actor at t = 0
     velocity: np.ndarray = field(default_factory=lambda: np.zeros(3))  # world frame, m/s
     yaw_rate: float = 0.0  # rad/s about world z
+    # How the parts were built (simgen.meshes.build_actor_parts), so meta/ can rebuild them.
+    recipe: dict = field(default_factory=dict)
 
     def pose_at(self, t: float | np.ndarray) -> np.ndarray:
         """World-from-actor pose(s) at time t under constant velocity and yaw rate.
@@ -98,6 +110,14 @@ class World:
     weather: Weather
     lidar_pose: np.ndarray
     ego_velocity: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    # Added by the scene generator: the camera (simgen.rigs.CameraRig), light, sensor look, the
+    # parameters that rebuild `static` (simgen.scenery.build_scenery), and where it came from.
+    rig: object | None = None
+    light: Light = field(default_factory=Light)
+    sensor: str = "normal"  # normal, night_vision or thermal
+    scenery: dict = field(default_factory=dict)
+    seed: int = 0
+    frame_index: int = 0
 
     def lidar_pose_at(self, t: float | np.ndarray) -> np.ndarray:
         """World-from-LiDAR pose(s) of the moving ego sensor at time t."""

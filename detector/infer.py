@@ -1,0 +1,96 @@
+"""Inference: letterbox, network, NMS, and boxes mapped back to exact source-image pixels;
+KITTI result files with the 3D fields as the format's placeholders."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+from tqdm import tqdm
+
+from detector.boxes import Letterbox
+from detector.data import CLASSES
+from detector.model import FlexiNet, ModelConfig
+from detector.nms import postprocess
+from kitti.dataset import KittiDataset
+from kitti.labels import Object3D, write_label
+
+DEFAULT_WEIGHTS = Path(__file__).resolve().parent / "weights" / "flexinet_small.pt"
+
+
+def save_checkpoint(path: Path, model: FlexiNet, input_size: tuple[int, int], extra: dict | None = None) -> None:
+    """A self-describing checkpoint: network config (anchors included), input size, class names, weights."""
+    from kitti.io import atomic_path
+    state = {"model_cfg": model.cfg.to_dict(), "input_size": list(input_size), "classes": list(CLASSES),
+             "model": {k: v.detach().clone() for k, v in model.state_dict().items()}}
+    state.update(extra or {})
+    with atomic_path(Path(path)) as tmp:
+        torch.save(state, tmp)
+
+
+@dataclass
+class Detector:
+    model: FlexiNet
+    input_size: tuple[int, int]  # network input (w, h)
+    classes: tuple[str, ...]
+
+    @staticmethod
+    def load(weights: str | Path | None = None) -> "Detector":
+        path = Path(weights) if weights else DEFAULT_WEIGHTS
+        if not path.is_file():
+            raise FileNotFoundError(f"detector weights not found: {path}")
+        ck = torch.load(path, map_location="cpu", weights_only=True)
+        for key in ("model_cfg", "input_size", "classes", "model"):
+            if key not in ck:
+                raise ValueError(f"{path}: not a FlexiNet checkpoint (missing {key!r})")
+        model = FlexiNet(ModelConfig.from_dict(ck["model_cfg"]))
+        model.load_state_dict(ck["model"])
+        model.eval().fuse()
+        return Detector(model, tuple(ck["input_size"]), tuple(ck["classes"]))
+
+    @torch.no_grad()
+    def detect(self, images: list[np.ndarray], conf_threshold: float = 0.01, iou_threshold: float = 0.6,
+               max_det: int = 100) -> list[np.ndarray]:
+        """RGB uint8 images -> per image (K,6) float64: x1, y1, x2, y2 (source pixels), score, class id."""
+        if not images:
+            return []
+        boxes = [Letterbox.fit(im.shape[1], im.shape[0], *self.input_size) for im in images]
+        x = torch.from_numpy(np.stack([lb.apply(im) for lb, im in zip(boxes, images)]))
+        x = x.permute(0, 3, 1, 2).float().div_(255)
+        dets = postprocess(self.model.predict_raw(x), conf_threshold, iou_threshold, max_det)
+        out = []
+        for lb, d in zip(boxes, dets):
+            d = d.double().numpy()
+            d[:, :4] = lb.inverse(d[:, :4])
+            keep = (d[:, 2] > d[:, 0]) & (d[:, 3] > d[:, 1])
+            out.append(d[keep])
+        return out
+
+    def to_objects(self, det: np.ndarray) -> list[Object3D]:
+        """KITTI result rows: type, 2D box and score; the unknown 3D fields are the format's
+        placeholders (truncated/occluded -1, alpha -10, size -1, location -1000, rotation -10)."""
+        return [Object3D(type=self.classes[int(c)], truncated=-1.0, occluded=-1, alpha=-10.0,
+                         bbox=np.array(b, dtype=np.float64), h=-1.0, w=-1.0, l=-1.0,
+                         location=np.array([-1000.0, -1000.0, -1000.0]), rotation_y=-10.0, score=float(s))
+                for *b, s, c in det]
+
+
+def detect_dataset(root: str | Path, out_dir: str | Path, weights: str | Path | None = None,
+                   split: str | None = "val", part: str = "training", batch: int = 4,
+                   conf_threshold: float = 0.01, iou_threshold: float = 0.6,
+                   progress: bool = True) -> dict[str, list[Object3D]]:
+    """Detect every frame of a split and write one KITTI result file per frame (empty when none)."""
+    det = Detector.load(weights)
+    ds = KittiDataset(root, part=part)
+    ids = ds.ids(split)
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    results: dict[str, list[Object3D]] = {}
+    for i in tqdm(range(0, len(ids), batch), desc="detect", disable=not progress):
+        chunk = ids[i:i + batch]
+        for fid, d in zip(chunk, det.detect([ds.image(f) for f in chunk], conf_threshold, iou_threshold)):
+            objs = det.to_objects(d)
+            write_label(out_dir / f"{fid}.txt", objs)
+            results[fid] = objs
+    return results

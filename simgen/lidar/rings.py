@@ -1,0 +1,81 @@
+"""Ring bookkeeping: keep every k-th ring (thesis 000: 64 -> 32 -> 16) and recover the rings
+of a real KITTI scan that has no side file.
+
+Recovery. KITTI .bin points are stored laser by laser, each laser one revolution in firing
+order, so within a ring the azimuth atan2(y, x) moves steadily one way and it jumps back by
+about 2 pi where the next ring starts. Rings are the runs between those jumps, numbered from
+the top by their median elevation. When the jumps do not give exactly the expected ring count
+(an empty ring, a ring cut at the back), rings come from 1-D k-means on the elevation angle
+instead, started from the HDL-64E table.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .spec import HDL64E_ELEVATIONS
+
+
+def kept_rings(beams_in: int, beams_out: int) -> np.ndarray:
+    """Rings 0, k, 2k, ... with k = beams_in / beams_out (ring 0 = top beam)."""
+    if beams_out <= 0 or beams_out > beams_in or beams_in % beams_out:
+        raise ValueError(f"--beams {beams_out} must divide the scan's {beams_in} beams "
+                         f"(keeps every {beams_in}//N-th ring)")
+    return np.arange(0, beams_in, beams_in // beams_out)
+
+
+def reduce_rings(ring: np.ndarray, beams_in: int, beams_out: int) -> tuple[np.ndarray, np.ndarray]:
+    """(mask of points kept, their new ring index 0..beams_out-1)."""
+    k = beams_in // beams_out
+    kept_rings(beams_in, beams_out)
+    mask = (ring.astype(np.int64) % k) == 0
+    return mask, (ring[mask] // k).astype(np.uint8)
+
+
+def elevation(points: np.ndarray) -> np.ndarray:
+    return np.arctan2(points[:, 2], np.hypot(points[:, 0], points[:, 1]))
+
+
+def rings_from_azimuth_wraps(points: np.ndarray) -> np.ndarray:
+    """Run index per point: a new run starts where the azimuth jumps back by more than pi."""
+    if len(points) < 2:
+        return np.zeros(len(points), np.int64)
+    az = np.arctan2(points[:, 1], points[:, 0])
+    d = np.diff(az)
+    small = d[np.abs(d) < np.pi]
+    direction = np.sign(np.median(small)) if len(small) else 1.0
+    starts = direction * d < -np.pi
+    return np.concatenate([[0], np.cumsum(starts)])
+
+
+def rings_from_elevation(points: np.ndarray, beams: int, iterations: int = 30) -> np.ndarray:
+    """1-D k-means on elevation; ring 0 is the highest cluster."""
+    el = np.degrees(elevation(points))
+    if beams == len(HDL64E_ELEVATIONS):
+        centres = np.asarray(HDL64E_ELEVATIONS, float)[::-1].copy()  # ascending
+    else:
+        centres = np.quantile(el, (np.arange(beams) + 0.5) / beams)
+    for _ in range(iterations):
+        centres = np.sort(centres)
+        lab = np.searchsorted(0.5 * (centres[1:] + centres[:-1]), el)
+        sums = np.bincount(lab, weights=el, minlength=beams)
+        cnt = np.bincount(lab, minlength=beams)
+        new = np.where(cnt > 0, sums / np.maximum(cnt, 1), centres)
+        if np.allclose(new, centres, atol=1e-6):
+            break
+        centres = new
+    centres = np.sort(centres)
+    lab = np.searchsorted(0.5 * (centres[1:] + centres[:-1]), el)
+    return (beams - 1 - lab).astype(np.int64)
+
+
+def recover_rings(points: np.ndarray, beams: int = 64) -> tuple[np.ndarray, str]:
+    """Ring per point (0 = top) of a KITTI-ordered scan, and the method that found it."""
+    runs = rings_from_azimuth_wraps(points)
+    if len(points) and runs[-1] + 1 == beams:
+        el = elevation(points)
+        med = np.array([np.median(el[runs == k]) for k in range(beams)])
+        rank = np.empty(beams, np.int64)
+        rank[np.argsort(-med)] = np.arange(beams)
+        return rank[runs].astype(np.uint8), "azimuth-wrap"
+    return rings_from_elevation(points, beams).astype(np.uint8), "elevation-kmeans"

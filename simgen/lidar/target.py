@@ -1,0 +1,110 @@
+"""The world as one Embree triangle scene, with per-triangle actor id and reflectivity.
+
+Rays hit the very meshes the camera renders (every actor part and static part), not proxy
+shapes. All triangles go into a single Embree geometry, so a hit's primID indexes the
+lookup arrays directly.
+
+Motion: Embree in embreex has no motion blur, so each moving actor is placed once, at its
+pose at the instant the head sweeps across the actor's centre bearing (`placed_time`);
+`scan` then moves each hit on it along the facet normal by the actor's rigid motion between
+that instant and the ray's own time. For an actor seen by a 10 Hz head the beam crosses it
+within a few milliseconds of the placement, so the error is second order (a car 4 m wide at
+10 m spans 23 deg = 6 ms: at 15 m/s its edges are placed 5 cm off before the correction).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from embreex.mesh_construction import TriangleMesh
+from embreex.rtcore_scene import EmbreeScene
+
+from ..world import World
+from .rays import sweep_time_of_azimuth
+from .spec import LidarSpec
+
+
+@dataclass
+class Target:
+    scene: EmbreeScene
+    tri_actor: np.ndarray  # (F,) int32 actor id per triangle, 0 = static
+    tri_slot: np.ndarray  # (F,) int32 index into the per-actor arrays below, -1 = static
+    tri_refl: np.ndarray  # (F,) float32 LiDAR reflectivity per triangle
+    actor_ids: np.ndarray  # (A,) int32
+    placed_time: np.ndarray  # (A,) float64 time each actor's mesh is placed at
+    placed_origin: np.ndarray  # (A, 3) actor origin (world) at placed_time
+    velocity: np.ndarray  # (A, 3)
+    yaw_rate: np.ndarray  # (A,)
+    n_triangles: int
+
+
+def placement_times(world: World, spec: LidarSpec, iterations: int = 3) -> np.ndarray:
+    """Per actor, the time the head faces its centre; a fixed point of t -> bearing(t)."""
+    n = len(world.actors)
+    if n == 0 or not spec.motion:
+        return np.zeros(n)
+    r_inv = world.lidar_pose[:3, :3].T
+    centres = []
+    for a in world.actors:
+        b = a.mesh().bounds
+        centres.append(0.5 * (b[0] + b[1]))
+    centres = np.asarray(centres)  # actor frame
+    t = np.zeros(n)
+    for _ in range(iterations):
+        c_w = np.array([(a.pose_at(ti) @ np.append(c, 1.0))[:3]
+                        for a, c, ti in zip(world.actors, centres, t)])
+        o = world.lidar_pose_at(t)[:, :3, 3]
+        p = (c_w - o) @ r_inv.T
+        t = np.clip(sweep_time_of_azimuth(np.arctan2(p[:, 1], p[:, 0]), spec),
+                    -spec.period / 2, spec.period / 2)
+    return t
+
+
+def build_target(world: World, spec: LidarSpec) -> Target:
+    """Concatenate every triangle in world frame (actors at their placement poses)."""
+    t_place = placement_times(world, spec)
+    verts, faces, actor, slot, refl = [], [], [], [], []
+    nv = 0
+
+    def add(mesh, transform, aid: int, s: int, rho: float) -> None:
+        nonlocal nv
+        v = np.asarray(mesh.vertices, dtype=float)
+        if transform is not None:
+            v = v @ transform[:3, :3].T + transform[:3, 3]
+        f = np.asarray(mesh.faces, dtype=np.int64) + nv
+        verts.append(v)
+        faces.append(f)
+        nf = len(f)
+        actor.append(np.full(nf, aid, np.int32))
+        slot.append(np.full(nf, s, np.int32))
+        refl.append(np.full(nf, rho, np.float32))
+        nv += len(v)
+
+    for part in world.static:
+        add(part.mesh, None, 0, -1, part.material.reflectivity)
+    placed_origin = np.zeros((len(world.actors), 3))
+    for i, (a, t) in enumerate(zip(world.actors, t_place)):
+        pose = a.pose_at(float(t))
+        placed_origin[i] = pose[:3, 3]
+        for part in a.parts:
+            add(part.mesh, pose, a.id, i, part.material.reflectivity)
+
+    scene = EmbreeScene()
+    if verts:
+        v_all = np.ascontiguousarray(np.concatenate(verts), dtype=np.float32)
+        f_all = np.ascontiguousarray(np.concatenate(faces), dtype=np.int32)
+        TriangleMesh(scene, v_all, f_all)
+    cat = (lambda xs, dt: np.concatenate(xs) if xs else np.zeros(0, dt))
+    return Target(
+        scene=scene,
+        tri_actor=cat(actor, np.int32),
+        tri_slot=cat(slot, np.int32),
+        tri_refl=cat(refl, np.float32),
+        actor_ids=np.array([a.id for a in world.actors], dtype=np.int32),
+        placed_time=t_place,
+        placed_origin=placed_origin,
+        velocity=np.array([np.asarray(a.velocity, float) for a in world.actors]).reshape(-1, 3),
+        yaw_rate=np.array([float(a.yaw_rate) for a in world.actors]),
+        n_triangles=sum(len(f) for f in faces),
+    )

@@ -1,0 +1,236 @@
+"""Scene specs (`scenes/*.yaml`): validated on load, every error names the key and the file.
+
+Every physical parameter is a factor (simgen.factors): a fixed value, `{range: [lo, hi]}`,
+`{choice: [...]}` or `{steps: [lo, hi, n]}`, sampled per frame from the seed.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from .factors import factor
+
+VEHICLE_CLASSES = ("Car", "Van", "Truck", "Bus")
+ACTOR_CLASSES = ("Car", "Van", "Truck", "Bus", "Pedestrian", "Cyclist", "Tram", "Misc")
+
+
+class SpecError(ValueError):
+    """A scene spec that cannot be used; the message names the file and the key."""
+
+
+class Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True, validate_default=True)
+
+
+class SplitSpec(Strict):
+    train_fraction: float = Field(0.5, gt=0.0, lt=1.0)
+
+
+class RoadSpec(Strict):
+    """A road along +x through the ego position; lanes of both directions, curbs and sidewalks."""
+
+    type: factor(str, options=("straight", "curved")) = "straight"
+    lanes_per_direction: factor(int, 1, 4) = 2
+    lane_width: factor(float, 2.5, 4.5) = 3.5
+    curvature: factor(float, -0.01, 0.01) = 0.0  # 1/m, left positive; used when type is curved
+    ego_lane: factor(int, 0, 3) = 0  # counted from the right curb, clipped to the lanes present
+    sidewalk_width: factor(float, 1.0, 8.0) = 3.0
+    curb_height: factor(float, 0.0, 0.3) = 0.15
+    length_ahead: float = Field(160.0, ge=20.0, le=400.0)
+    length_behind: float = Field(40.0, ge=0.0, le=200.0)
+
+
+class TrafficSpec(Strict):
+    vehicles_per_100m: factor(float, 0.0, 30.0) = 2.0  # per moving lane
+    mix: dict[str, float] = Field(default_factory=lambda: {"Car": 0.8, "Van": 0.12, "Truck": 0.08})
+    parked_per_100m: factor(float, 0.0, 20.0) = 6.0  # per curb
+    pedestrians_per_100m: factor(float, 0.0, 50.0) = 3.0  # per sidewalk
+    cyclists_per_100m: factor(float, 0.0, 20.0) = 0.5  # per direction
+    max_distance: factor(float, 10.0, 400.0) = 120.0  # along the road, ahead of the sensor
+    speed: factor(float, 0.0, 40.0) = 12.0  # m/s of moving traffic
+    heading_sd_deg: factor(float, 0.0, 30.0) = 2.0
+    lateral_sd: factor(float, 0.0, 1.0) = 0.2
+    oncoming: bool = True
+
+    @field_validator("mix")
+    @classmethod
+    def _mix(cls, v: dict[str, float]) -> dict[str, float]:
+        for k, w in v.items():
+            if k not in VEHICLE_CLASSES:
+                raise ValueError(f"unknown vehicle class {k!r} (allowed: {list(VEHICLE_CLASSES)})")
+            if w < 0:
+                raise ValueError(f"weight of {k} is negative")
+        if v and sum(v.values()) <= 0:
+            raise ValueError("the weights sum to zero")
+        return v
+
+
+class ClutterSpec(Strict):
+    buildings: bool = True
+    building_setback: factor(float, 0.0, 30.0) = 1.0  # metres behind the sidewalk
+    trees_per_100m: factor(float, 0.0, 40.0) = 4.0  # per side
+    pole_spacing: factor(float, 0.0, 200.0) = 30.0  # metres; 0 = no poles
+    fences: bool = False
+
+
+class OnboardRig(Strict):
+    """KITTI's car rig: the real KITTI calibration, LiDAR 1.73 m above the road."""
+
+    type: Literal["onboard"] = "onboard"
+    ego_speed: factor(float, 0.0, 40.0) = 10.0
+
+
+class GantryRig(Strict):
+    """004 roadside camera: height, pan, tilt, one focal length, principal point at the centre."""
+
+    type: Literal["gantry"]
+    cam_height: factor(float, 2.0, 30.0) = 6.5
+    pan_deg: factor(float, -90.0, 90.0) = 0.0
+    tilt_deg: factor(float, 0.0, 89.0) = 20.0
+    focal_px: factor(float, 100.0, 5000.0) = 1000.0
+    lateral: factor(float, -30.0, 30.0) = 0.0  # camera offset left of the road centre, m
+    image_width: int = Field(1242, ge=32, le=4096)
+    image_height: int = Field(375, ge=32, le=4096)
+
+
+class OrbitRig(Strict):
+    """003 camera around a target vehicle: distance, elevation, azimuth (0 = in front of it)."""
+
+    type: Literal["orbit"]
+    distance: factor(float, 3.0, 500.0) = 30.0
+    elevation_deg: factor(float, 0.0, 89.0) = 20.0
+    azimuth_deg: factor(float, -360.0, 360.0) = 0.0
+    focal_px: factor(float, 100.0, 5000.0) = 721.5377
+    target_class: Literal["Car", "Van", "Truck", "Bus"] = "Car"
+    image_width: int = Field(1242, ge=32, le=4096)
+    image_height: int = Field(375, ge=32, le=4096)
+
+
+class LightSpec(Strict):
+    time: factor(str, options=("day", "dusk", "night")) = "day"
+    sun_intensity: factor(float, 0.0, 1.0) = 1.0  # share of full sun
+    sun_elevation_deg: factor(float, 0.0, 90.0) = 45.0
+    sun_azimuth_deg: factor(float, -360.0, 360.0) = 30.0  # from world +x towards +y
+
+
+class WeatherSpec(Strict):
+    fog_extinction: factor(float, 0.0, 0.3) = 0.0  # beta, 1/m; visibility ~ 3/beta
+    rain_rate: factor(float, 0.0, 100.0) = 0.0  # mm/h
+    wind: factor(float, 0.0, 30.0) = 0.0  # m/s
+
+
+class LabelRules(Strict):
+    """Which objects get a full label, which a DontCare row (thresholds documented in labels.py)."""
+
+    min_height_px: float = Field(10.0, ge=0.0)
+    max_distance: float = Field(80.0, gt=0.0)
+    min_visible_share: float = Field(0.1, ge=0.0, le=1.0)
+    occlusion_partly_below: float = Field(0.8, gt=0.0, le=1.0)  # visible share < this -> 1
+    occlusion_largely_below: float = Field(0.3, gt=0.0, le=1.0)  # visible share < this -> 2
+
+    @model_validator(mode="after")
+    def _order(self) -> "LabelRules":
+        if self.occlusion_largely_below > self.occlusion_partly_below:
+            raise ValueError("occlusion_largely_below must not exceed occlusion_partly_below")
+        return self
+
+
+class LidarSection(Strict):
+    """Passed through untouched to simgen.lidar.preset(preset, beams, max_range)."""
+
+    preset: str
+    beams: int | None = Field(None, ge=1)
+    max_range: float | None = Field(None, gt=0.0)
+
+
+class UserMeshSpec(Strict):
+    """A mesh file trimesh loads (OBJ/GLB/PLY...), frame x forward, y left, z up (or up: y)."""
+
+    path: str
+    cls: Literal["Car", "Van", "Truck", "Bus", "Pedestrian", "Cyclist", "Misc"]
+    size: tuple[float, float, float] | None = None  # target h, w, l in metres
+    share: float = Field(1.0, ge=0.0, le=1.0)  # share of the class's actors that use it
+    up: Literal["z", "y"] = "z"
+    color: tuple[float, float, float] = (0.5, 0.5, 0.5)
+    reflectivity: float = Field(0.3, ge=0.0, le=1.0)
+
+    @field_validator("size")
+    @classmethod
+    def _size(cls, v):
+        if v is not None and min(v) <= 0:
+            raise ValueError("size entries h, w, l must be positive")
+        return v
+
+
+class SceneSpec(Strict):
+    name: str
+    frames: int = Field(8, ge=1)
+    seed: int = Field(0, ge=0)
+    split: SplitSpec = SplitSpec()
+    road: RoadSpec = RoadSpec()
+    traffic: TrafficSpec = TrafficSpec()
+    clutter: ClutterSpec = ClutterSpec()
+    rig: Annotated[OnboardRig | GantryRig | OrbitRig, Field(discriminator="type")] = OnboardRig()
+    light: LightSpec = LightSpec()
+    weather: WeatherSpec = WeatherSpec()
+    sensor: factor(str, options=("normal", "night_vision", "thermal")) = "normal"
+    labels: LabelRules = LabelRules()
+    lidar: LidarSection | None = None
+    user_meshes: list[UserMeshSpec] = Field(default_factory=list)
+
+    @field_validator("lidar", mode="before")
+    @classmethod
+    def _lidar_none(cls, v: Any) -> Any:
+        return None if v in ("none", "None", False) else v
+
+
+def _format_errors(err: ValidationError, path: Path) -> str:
+    lines = []
+    for e in err.errors():
+        key = ".".join(str(p) for p in e["loc"]) or "<top level>"
+        msg = e["msg"].removeprefix("Value error, ")
+        lines.append(f"{path}: key '{key}': {msg}")
+    return "\n".join(lines)
+
+
+def spec_from_dict(data: Any, path: str | Path = "<spec>") -> SceneSpec:
+    path = Path(path)
+    if not isinstance(data, dict):
+        raise SpecError(f"{path}: the spec must be a mapping of keys, got {type(data).__name__}")
+    try:
+        spec = SceneSpec.model_validate(data)
+    except ValidationError as e:
+        raise SpecError(_format_errors(e, path)) from None
+    for i, um in enumerate(spec.user_meshes):
+        p = Path(um.path)
+        if not p.is_absolute():
+            p = path.parent / p
+        if not p.is_file():
+            raise SpecError(f"{path}: key 'user_meshes.{i}.path': no such file {p}")
+    return spec
+
+
+def load_spec(path: str | Path) -> SceneSpec:
+    path = Path(path)
+    try:
+        data = yaml.safe_load(path.read_text())
+    except OSError as e:
+        raise SpecError(f"{path}: cannot read the spec: {e.strerror}") from None
+    except yaml.YAMLError as e:
+        raise SpecError(f"{path}: not valid YAML: {e}") from None
+    spec = spec_from_dict(data, path)
+    # User mesh paths are relative to the spec file: make them absolute once, here.
+    if spec.user_meshes:
+        fixed = [um.model_copy(update={"path": str((path.parent / um.path).resolve())})
+                 for um in spec.user_meshes]
+        spec = spec.model_copy(update={"user_meshes": fixed})
+    return spec
+
+
+def spec_to_dict(spec: SceneSpec) -> dict:
+    """JSON-able form that validates back to the same spec."""
+    return spec.model_dump(mode="json")
