@@ -42,7 +42,7 @@ class ConvUnit(nn.Module):
     def __init__(self, c1: int, c2: int, k: int = 1, s: int = 1, act: str = "hardswish"):
         super().__init__()
         self.conv = nn.Conv2d(c1, c2, k, s, k // 2, bias=False)
-        self.bn = nn.BatchNorm2d(c2, eps=1e-3, momentum=0.03)
+        self.bn = nn.BatchNorm2d(c2, eps=1e-3, momentum=0.1)
         self.act = make_activation(act, c2)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:

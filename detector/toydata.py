@@ -31,8 +31,10 @@ def make_toy_frame(rng: np.random.Generator, size: tuple[int, int], max_objects:
     img = rng.integers(0, 60, size=(h, w, 3), dtype=np.uint8)
     objects: list[Object3D] = []
     taken = np.zeros((h, w), dtype=bool)
-    for _ in range(int(rng.integers(1, max_objects + 1))):
-        kind = list(TOY_CLASSES)[int(rng.integers(len(TOY_CLASSES)))]
+    kinds = list(TOY_CLASSES)
+    first = int(rng.integers(len(kinds)))
+    for n in range(int(rng.integers(1, max_objects + 1))):
+        kind = kinds[(first + n) % len(kinds)]  # classes in turn: every class is well represented
         colour, (w0, w1), (h0, h1) = TOY_CLASSES[kind]
         for _attempt in range(20):
             bw, bh = int(rng.integers(w0, w1 + 1)), int(rng.integers(h0, h1 + 1))

@@ -232,8 +232,9 @@ def train(cfg: TrainConfig, resume: bool = False) -> dict:
         save_checkpoint(ck_path, ema.ema, img_size, {
             "train_model": model.state_dict(), "optimizer": opt.state_dict(), "epoch": epoch,
             "ema_updates": ema.updates, "history": history, "train_config": _plain(cfg.to_dict())})
-        save_checkpoint(out / "weights.pt", ema.ema, img_size, {"train_config": _plain(cfg.to_dict())})
-        write_history(out, history)
+        write_history(out, history, plot="Car_2d_R40_moderate" in row or epoch + 1 == cfg.epochs)
+    save_checkpoint(out / "weights.pt", ema.ema, img_size, {"train_config": _plain(cfg.to_dict()),
+                                                           "history": history})
     return row
 
 
@@ -255,13 +256,15 @@ def _default_size(root: str, split: str | None) -> tuple[int, int]:
     return input_size_for(w, h, 640)
 
 
-def write_history(out: Path, history: list[dict]) -> None:
-    """history.csv and history.png (loss and 2D AP|R40 moderate per class per epoch)."""
+def write_history(out: Path, history: list[dict], plot: bool = True) -> None:
+    """history.csv and (with plot) history.png: loss and 2D AP|R40 moderate per class per epoch."""
     lines = [",".join(CSV_FIELDS)]
     for r in history:
         lines.append(",".join("" if r.get(k) is None else (f"{r[k]:.6g}" if isinstance(r[k], float) else str(r[k]))
                               for k in CSV_FIELDS))
     atomic_write_text(out / "history.csv", "\n".join(lines) + "\n")
+    if not plot:
+        return
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -276,7 +279,9 @@ def write_history(out: Path, history: list[dict]) -> None:
         pts = [(r["epoch"], r[key]) for r in history if key in r]
         if pts:
             a2.plot(*zip(*pts), marker="o", label=c)
-    a2.set_xlabel("epoch"); a2.set_ylabel("2D AP|R40 moderate"); a2.set_ylim(0, 100); a2.legend()
+    a2.set_xlabel("epoch"); a2.set_ylabel("2D AP|R40 moderate"); a2.set_ylim(0, 100)
+    if a2.lines:
+        a2.legend()
     fig.tight_layout()
     with atomic_path(out / "history.png") as tmp:
         fig.savefig(tmp, format="png", dpi=90)

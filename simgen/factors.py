@@ -111,4 +111,4 @@ def factor(kind: type = float, lo: float | None = None, hi: float | None = None,
            options: tuple | None = None):
     """An annotated pydantic type for one factor with bounds (numbers) or options (names)."""
     return Annotated[Factor, PlainValidator(_parser(kind, lo, hi, options)),
-                     PlainSerializer(lambda f: f.to_json())]
+                     PlainSerializer(lambda f: f.to_json() if isinstance(f, Factor) else f)]

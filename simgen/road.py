@@ -53,7 +53,7 @@ class RoadLayout:
         return self.left_lane_edge + (PARKING_WIDTH if self.parking else 0.0)
 
     def lane_centre(self, lane: int, oncoming: bool = False) -> float:
-        """d of a lane centre; lanes counted outward from the divider's side... from the curb."""
+        """d of a lane centre; lane 0 is the one next to its own curb (or parking strip)."""
         if oncoming:
             return self.left_lane_edge - (lane + 0.5) * self.lane_width
         return self.right_lane_edge + (lane + 0.5) * self.lane_width

@@ -4,7 +4,14 @@ from __future__ import annotations
 
 import click
 
+from .cmd_generate import generate
+from .cmd_lift import lift
+from .cmd_train_lifter import train_lifter
 from .cmd_show import show
+from .cmd_rescan import rescan
+from .cmd_reduce_beams import reduce_beams
+from .cmd_run import run
+from .cmd_sweep import sweep
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -13,7 +20,14 @@ def cli() -> None:
     KITTI evaluation, swept over LiDAR beams, range and weather."""
 
 
+cli.add_command(generate)
+cli.add_command(lift)
+cli.add_command(train_lifter)
 cli.add_command(show)
+cli.add_command(rescan)
+cli.add_command(reduce_beams)
+cli.add_command(run)
+cli.add_command(sweep)
 
 
 def main() -> None:

@@ -21,7 +21,10 @@ from .spec import LidarSpec
 @dataclass(frozen=True)
 class RayTable:
     dirs: np.ndarray  # (N, 3) float64 unit directions in the LiDAR frame
+    dirs32: np.ndarray  # the same in float32
+    dirs4: np.ndarray  # (N, 4) float32, x, y, z, 0: 16-byte rows gather fastest
     time: np.ndarray  # (N,) float64 seconds from the camera trigger
+    time32: np.ndarray  # the same in float32
     azimuth: np.ndarray  # (N,) float32 radians, atan2(y, x) of the direction
     ring: np.ndarray  # (N,) uint8
     columns: int
@@ -29,7 +32,10 @@ class RayTable:
 
 @lru_cache(maxsize=16)
 def ray_table(spec: LidarSpec) -> RayTable:
-    """Cached per spec: a sweep re-uses the same rays, so no trigonometry per scan."""
+    """Cached per spec: a sweep re-uses the same rays, so no trigonometry per scan.
+
+    (The arrays are not flagged read-only: numpy's matmul takes a slow non-BLAS path on
+    read-only operands, 17 ms instead of 0.1 ms for the 128k directions.)"""
     k = spec.columns
     t_col = (np.arange(k) + 0.5) * spec.period / k - spec.period / 2.0
     az_col = -2.0 * np.pi * spec.rotation_hz * t_col
@@ -40,14 +46,15 @@ def ray_table(spec: LidarSpec) -> RayTable:
     n = spec.beams
     table = RayTable(
         dirs=np.ascontiguousarray(dirs),
+        dirs32=np.ascontiguousarray(dirs, dtype=np.float32),
+        dirs4=np.concatenate([dirs, np.zeros((len(dirs), 1))], axis=1).astype(np.float32),
         time=np.tile(t_col, n),
+        time32=np.tile(t_col, n).astype(np.float32),
         azimuth=np.tile(az_col, n).astype(np.float32),
         ring=np.repeat(np.arange(n, dtype=np.uint8), k),
         columns=k,
     )
-    for a in (table.dirs, table.time, table.azimuth, table.ring):
-        a.setflags(write=False)
-    return table
+    return table  # shared by every scan with this spec: callers never write into it
 
 
 def sweep_time_of_azimuth(azimuth: np.ndarray | float, spec: LidarSpec) -> np.ndarray:

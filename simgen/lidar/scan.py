@@ -15,6 +15,7 @@ in KITTI's files (which is why very dark or grazing returns read exactly 0).
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
+from functools import lru_cache
 
 import numpy as np
 
@@ -75,54 +76,54 @@ def scan(world: World, spec: LidarSpec, seed: int | np.random.Generator,
     """Scan `world` with `spec`. Same world, spec and seed: the same points, bit for bit.
 
     `target` (from build_target(world, spec)) can be passed to reuse the Embree scene.
+    Arithmetic runs in float32 (1e-5 m at 100 m) except the motion correction.
     """
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
     rays = ray_table(spec)
     tgt = target if target is not None else build_target(world, spec)
     n = len(rays.time)
 
-    rot = world.lidar_pose[:3, :3]
-    d_w = (rays.dirs @ rot.T).astype(np.float32)
+    d_w = _world_dirs(spec, tuple(world.lidar_pose[:3, :3].ravel().tolist()))
     origins = np.empty((n, 3), np.float32)
-    origins[:] = world.lidar_pose[:3, 3]
-    ego_v = np.asarray(world.ego_velocity, dtype=float)
+    ego_v = np.asarray(world.ego_velocity, dtype=np.float32)
     if spec.motion and np.any(ego_v):
-        origins += (rays.time[:, None] * ego_v[None, :]).astype(np.float32)
-
-    far = spec.max_range + 1.0
-    if tgt.n_triangles:
-        res = tgt.scene.run(origins, d_w, dists=far, output=1)
-        idx = np.flatnonzero(res["primID"] >= 0)
+        np.multiply(rays.time32[:, None], ego_v[None, :], out=origins)
+        origins += world.lidar_pose[:3, 3].astype(np.float32)
     else:
-        res, idx = None, np.zeros(0, np.int64)
-    tri = res["primID"][idx] if res is not None else idx
-    r = res["tfar"][idx].astype(np.float64) if res is not None else np.zeros(0)
-    ring = rays.ring[idx]
-    ng = res["Ng"][idx] if res is not None else np.zeros((0, 3), np.float32)
-    dh = d_w[idx]
-    ng_norm = np.sqrt(np.einsum("ij,ij->i", ng, ng))
-    cos_inc = np.abs(np.einsum("ij,ij->i", ng, dh)) / np.maximum(ng_norm, 1e-30)
+        origins[:] = world.lidar_pose[:3, 3]
 
-    if spec.motion and len(tgt.actor_ids):
-        slot = tgt.tri_slot[tri]
-        on_actor = np.flatnonzero(slot >= 0)
-        moving = (np.any(tgt.velocity != 0, axis=1) | (tgt.yaw_rate != 0))[slot[on_actor]]
-        sel = on_actor[moving]
+    if tgt.n_triangles:
+        res = tgt.scene.run(origins, d_w, dists=spec.max_range + 1.0, output=1)
+        prim, ng = res["primID"], res["Ng"]
+    else:
+        prim, ng = np.full(n, -1, np.int32), np.zeros((n, 3), np.float32)
+    idx = np.flatnonzero(prim >= 0)
+    tri = prim[idx]
+    r = res["tfar"][idx] if tgt.n_triangles else np.zeros(0, np.float32)
+    # incidence from the full-length dot product: cheaper than gathering (N, 3) rows
+    cos_inc = np.abs(np.einsum("ij,ij->i", ng, d_w)[idx]) * tgt.tri_inv_ng[tri]
+
+    if spec.motion and tri.size and tgt.first_moving < tgt.n_triangles:
+        sel = np.flatnonzero(tri >= tgt.first_moving)
         if len(sel):
-            hit_w = origins[idx[sel]] + r[sel, None] * dh[sel]
-            r[sel] += _motion_shift(tgt, slot[sel], rays.time[idx[sel]], hit_w,
-                                    ng[sel].astype(np.float64), dh[sel].astype(np.float64))
-
-    if spec.noise_sigma > 0 or spec.bias_sigma > 0:
-        r = r + spec.laser_biases()[ring] + rng.normal(0.0, spec.noise_sigma, len(r))
+            j = idx[sel]
+            r64 = r[sel].astype(np.float64)
+            d64 = d_w[j].astype(np.float64)
+            hit_w = origins[j] + r64[:, None] * d64
+            r[sel] = r64 + _motion_shift(tgt, tgt.tri_slot[tri[sel]], rays.time[j], hit_w,
+                                         ng[j].astype(np.float64), d64)
 
     beta = total_extinction(world.weather) if spec.weather else 0.0
     rho_cos = tgt.tri_refl[tri] * cos_inc
-    keep = (r >= spec.min_range) & (r <= spec.max_range)
-    if spec.detection:
+    keep = np.ones(len(r), bool)
+    if spec.detection:  # on the true range: the echo's power does not see the range noise
         keep &= spec.power(rho_cos, r, beta) >= 1.0
     if spec.dropout > 0:
-        keep &= rng.random(len(r)) >= spec.dropout
+        keep &= rng.random(len(r), dtype=np.float32) >= spec.dropout
+    if spec.noise_sigma > 0 or spec.bias_sigma > 0:
+        r += _laser_biases(spec)[rays.ring[idx]]
+        r += rng.standard_normal(len(r), dtype=np.float32) * np.float32(spec.noise_sigma)
+    keep &= (r >= spec.min_range) & (r <= spec.max_range)
     aid = tgt.tri_actor[tri]
 
     if spec.weather and (world.weather.fog_extinction > 0 or world.weather.rain_rate > 0):
@@ -130,7 +131,7 @@ def scan(world: World, spec: LidarSpec, seed: int | np.random.Generator,
         full_r[idx[keep]] = r[keep]
         full_p = np.zeros(n)
         full_p[idx[keep]] = spec.power(rho_cos[keep], r[keep], beta)
-        full_rc = np.zeros(n)
+        full_rc = np.zeros(n, np.float32)
         full_rc[idx[keep]] = rho_cos[keep]
         full_aid = np.zeros(n, np.int32)
         full_aid[idx[keep]] = aid[keep]
@@ -141,18 +142,36 @@ def scan(world: World, spec: LidarSpec, seed: int | np.random.Generator,
         wins = ok & (c_p >= 1.0) & (c_p > full_p)
         full_r[wins], full_rc[wins], full_aid[wins] = c_d[wins], c_rho[wins], CLUTTER_ID
         idx = np.flatnonzero(np.isfinite(full_r))
-        r, rho_cos, aid = full_r[idx], full_rc[idx], full_aid[idx]
+        r, rho_cos, aid = full_r[idx].astype(np.float32), full_rc[idx], full_aid[idx]
     else:
         idx, r, rho_cos, aid = idx[keep], r[keep], rho_cos[keep], aid[keep]
 
-    refl = rho_cos * (np.exp(-2.0 * beta * r) if beta > 0 else 1.0)
-    near = r < spec.saturation_range
-    if np.any(near):
-        refl[near] *= (spec.saturation_range / r[near]) ** 2
-    refl = np.round(np.clip(refl, 0.0, 1.0) * 100.0) / 100.0
+    refl = rho_cos * np.exp(np.float32(-2.0 * beta) * r) if beta > 0 else rho_cos
+    near = np.flatnonzero(r < spec.saturation_range)
+    if len(near):
+        refl[near] *= (np.float32(spec.saturation_range) / r[near]) ** 2
+    np.clip(refl, 0.0, 1.0, out=refl)
+    refl = np.round(refl * np.float32(100.0)) / np.float32(100.0)
 
-    points = np.empty((len(idx), 4), np.float32)
-    points[:, :3] = rays.dirs[idx] * r[:, None]
+    points = np.take(rays.dirs4, idx, axis=0)
+    points *= r[:, None]
     points[:, 3] = refl
     return LidarScan(points=points, ring=rays.ring[idx], azimuth=rays.azimuth[idx],
-                     time=rays.time[idx].astype(np.float32), actor_id=aid.astype(np.int32))
+                     time=rays.time32[idx], actor_id=aid.astype(np.int32, copy=False))
+
+
+@lru_cache(maxsize=16)
+def _world_dirs(spec: LidarSpec, rot: tuple[float, ...]) -> np.ndarray:
+    """Ray directions in the world frame, cached: rigs keep their orientation across frames.
+
+    Elementwise, not a BLAS matmul: with Embree's TBB workers still spinning after a query,
+    a threaded sgemm of this shape took 18 ms instead of 0.1 ms.
+    """
+    d = ray_table(spec).dirs32
+    m = np.asarray(rot, dtype=np.float32).reshape(3, 3)
+    return np.ascontiguousarray(d[:, 0:1] * m[:, 0] + d[:, 1:2] * m[:, 1] + d[:, 2:3] * m[:, 2])
+
+
+@lru_cache(maxsize=16)
+def _laser_biases(spec: LidarSpec) -> np.ndarray:
+    return spec.laser_biases().astype(np.float32)

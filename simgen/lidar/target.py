@@ -31,12 +31,14 @@ class Target:
     tri_actor: np.ndarray  # (F,) int32 actor id per triangle, 0 = static
     tri_slot: np.ndarray  # (F,) int32 index into the per-actor arrays below, -1 = static
     tri_refl: np.ndarray  # (F,) float32 LiDAR reflectivity per triangle
+    tri_inv_ng: np.ndarray  # (F,) float32 1 / |edge cross product|: normalises Embree's Ng
     actor_ids: np.ndarray  # (A,) int32
     placed_time: np.ndarray  # (A,) float64 time each actor's mesh is placed at
     placed_origin: np.ndarray  # (A, 3) actor origin (world) at placed_time
     velocity: np.ndarray  # (A, 3)
     yaw_rate: np.ndarray  # (A,)
     n_triangles: int
+    first_moving: int  # moving actors' triangles come last: primID >= first_moving
 
 
 def placement_times(world: World, spec: LidarSpec, iterations: int = 3) -> np.ndarray:
@@ -62,7 +64,8 @@ def placement_times(world: World, spec: LidarSpec, iterations: int = 3) -> np.nd
 
 
 def build_target(world: World, spec: LidarSpec) -> Target:
-    """Concatenate every triangle in world frame (actors at their placement poses)."""
+    """Concatenate every triangle in world frame (actors at their placement poses): static
+    parts, then still actors, then moving actors, so one comparison finds hits to correct."""
     t_place = placement_times(world, spec)
     verts, faces, actor, slot, refl = [], [], [], [], []
     nv = 0
@@ -84,27 +87,42 @@ def build_target(world: World, spec: LidarSpec) -> Target:
     for part in world.static:
         add(part.mesh, None, 0, -1, part.material.reflectivity)
     placed_origin = np.zeros((len(world.actors), 3))
-    for i, (a, t) in enumerate(zip(world.actors, t_place)):
-        pose = a.pose_at(float(t))
-        placed_origin[i] = pose[:3, 3]
-        for part in a.parts:
-            add(part.mesh, pose, a.id, i, part.material.reflectivity)
+    moves = [spec.motion and (bool(np.any(np.asarray(a.velocity) != 0)) or a.yaw_rate != 0)
+             for a in world.actors]
+    first_moving = 0
+    for moving in (False, True):
+        if moving:
+            first_moving = sum(len(f) for f in faces)
+        for i, (a, t) in enumerate(zip(world.actors, t_place)):
+            if moves[i] != moving:
+                continue
+            pose = a.pose_at(float(t))
+            placed_origin[i] = pose[:3, 3]
+            for part in a.parts:
+                add(part.mesh, pose, a.id, i, part.material.reflectivity)
 
     scene = EmbreeScene()
     if verts:
         v_all = np.ascontiguousarray(np.concatenate(verts), dtype=np.float32)
         f_all = np.ascontiguousarray(np.concatenate(faces), dtype=np.int32)
         TriangleMesh(scene, v_all, f_all)
+        tri = v_all[f_all].astype(np.float64)
+        ng = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+        inv_ng = (1.0 / np.maximum(ng, 1e-30)).astype(np.float32)
+    else:
+        inv_ng = np.zeros(0, np.float32)
     cat = (lambda xs, dt: np.concatenate(xs) if xs else np.zeros(0, dt))
     return Target(
         scene=scene,
         tri_actor=cat(actor, np.int32),
         tri_slot=cat(slot, np.int32),
         tri_refl=cat(refl, np.float32),
+        tri_inv_ng=inv_ng,
         actor_ids=np.array([a.id for a in world.actors], dtype=np.int32),
         placed_time=t_place,
         placed_origin=placed_origin,
         velocity=np.array([np.asarray(a.velocity, float) for a in world.actors]).reshape(-1, 3),
         yaw_rate=np.array([float(a.yaw_rate) for a in world.actors]),
         n_triangles=sum(len(f) for f in faces),
+        first_moving=first_moving,
     )

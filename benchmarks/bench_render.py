@@ -1,0 +1,89 @@
+"""Camera rendering speed and complete-frame throughput of the scene generator.
+
+Prints (1) the render time per 1242x375 frame of scenes/urban.yaml, split into scene build,
+colour pass (4x MSAA) and segmentation+depth pass, the look (fog/rain/sensor) and the label
+derivation; (2) complete frames per second (sample + render + labels + all files, no LiDAR,
+and with the spec's LiDAR) of `simgen.generate` with 1 and 2 worker processes.
+
+    .venv/bin/python benchmarks/bench_render.py [--frames N] [--spec scenes/urban.yaml]
+"""
+
+from __future__ import annotations
+
+import argparse
+import shutil
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+from pyrender.constants import RenderFlags
+
+from simgen.factors import factor_rng
+from simgen.generate import generate
+from simgen.labels import derive
+from simgen.look import apply_look
+from simgen.render import build_scene, renderer
+from simgen.sample import sample_world
+from simgen.spec import load_spec
+
+
+def render_breakdown(spec, n: int) -> None:
+    worlds = [sample_world(spec, spec.seed, i) for i in range(n)]
+    r = renderer(worlds[0].rig.width, worlds[0].rig.height)
+    build_scene(worlds[0])  # warm-up: shader compilation happens on the first render
+    r.render(build_scene(worlds[0])[0])
+    t = {"build": [], "colour": [], "seg+depth": [], "look": [], "labels": []}
+    for w in worlds:
+        t0 = time.perf_counter()
+        scene, seg = build_scene(w)
+        t1 = time.perf_counter()
+        color, _ = r.render(scene)
+        t2 = time.perf_counter()
+        ids, depth = r.render(scene, flags=RenderFlags.SEG, seg_node_map=seg)
+        t3 = time.perf_counter()
+        apply_look(color[..., :3], depth, w.rig.intrinsics(), w.weather, w.light, w.sensor,
+                   factor_rng(0, 0, "look"))
+        t4 = time.perf_counter()
+        inst = ids[..., 0].astype(np.uint16) + 256 * ids[..., 1].astype(np.uint16)
+        derive(w, inst, spec.labels)
+        t5 = time.perf_counter()
+        for k, a, b in (("build", t0, t1), ("colour", t1, t2), ("seg+depth", t2, t3),
+                        ("look", t3, t4), ("labels", t4, t5)):
+            t[k].append(1000 * (b - a))
+    actors = np.mean([len(w.actors) for w in worlds])
+    print(f"{spec.name}: {n} frames of {worlds[0].rig.width}x{worlds[0].rig.height}, "
+          f"{actors:.0f} actors per world on average")
+    for k, v in t.items():
+        print(f"  {k:10s} {np.median(v):7.1f} ms median  {np.mean(v):7.1f} ms mean")
+    render = np.array(t["build"]) + np.array(t["colour"]) + np.array(t["seg+depth"])
+    print(f"  RENDER (build + colour + seg/depth): {np.median(render):.1f} ms median per frame")
+
+
+def throughput(spec, n: int, workers: int, lidar: bool) -> None:
+    s = spec if lidar else spec.model_copy(update={"lidar": None})
+    out = Path(tempfile.mkdtemp(prefix="bench_render_", dir="data" if Path("data").is_dir() else None))
+    try:
+        t0 = time.perf_counter()
+        generate(s, out, frames=n, workers=workers, progress=False)
+        dt = time.perf_counter() - t0
+    finally:
+        shutil.rmtree(out)
+    print(f"  generate {n} frames, {workers} worker(s), LiDAR {'on' if lidar else 'off'}: "
+          f"{dt:.1f} s, {n / dt:.2f} frames/s (process start-up included)")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--spec", default="scenes/urban.yaml")
+    ap.add_argument("--frames", type=int, default=12)
+    args = ap.parse_args()
+    spec = load_spec(args.spec)
+    render_breakdown(spec, args.frames)
+    for lidar in (False, True):
+        for workers in (1, 2):
+            throughput(spec, args.frames, workers, lidar)
+
+
+if __name__ == "__main__":
+    main()

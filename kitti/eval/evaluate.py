@@ -1,0 +1,166 @@
+"""`evaluate`: the official KITTI object evaluation plus the testbed's breakdowns, CPU only."""
+
+from __future__ import annotations
+
+from typing import Iterable, Mapping, Sequence
+
+import numpy as np
+
+from ..labels import Object3D
+from . import breakdown
+from .ap import curve
+from .frames import Packed, pack
+from .overlaps import dontcare_overlap, pair_overlaps
+from .protocol import DIFFICULTIES, METRICS, clean, min_overlap, restrict
+from .report import EvalResult
+from .volumetric import DEFAULT_MAX_DISTANCE, volumetric
+
+MATCHINGS = ("iou3d", "centre")
+
+
+def _progress(items: list, on: bool, desc: str):
+    if not on:
+        return items
+    from tqdm import tqdm  # only for the command line; kitti itself needs numpy/scipy/numba
+    return tqdm(items, desc=desc, leave=False)
+
+
+def _absent(p: Packed, cls: str, metrics: Sequence[str]) -> dict:
+    """Metrics the detections cannot support, as the devkit decides it.
+
+    AOS needs every detection to carry alpha (one alpha of -10 anywhere turns it off); bird's-eye
+    and 3D need at least one detection of the class with such a box (2D-only result files). A class
+    without any detection is evaluated (and scores 0) rather than skipped.
+    """
+    out = {}
+    of_cls = p.dt.type == cls.lower()
+    if "aos" in metrics and np.any(p.dt.alpha == -10):
+        out["aos"] = "detections carry no alpha (-10)"
+    if of_cls.any():
+        if not np.any(p.dt.bbox[of_cls, 0] >= 0):
+            for m in ("2d", "aos"):
+                if m in metrics:
+                    out[m] = "no detection carries a 2D box (x1 >= 0)"
+        if "bev" in metrics and not p.dt.has_bev[of_cls].any():
+            out["bev"] = "no detection carries a bird's-eye box"
+        if "3d" in metrics and not p.dt.has_3d[of_cls].any():
+            out["3d"] = "no detection carries a 3D box"
+    return out
+
+
+def _ap_block(p: Packed, cls: str, metrics: Sequence[str], ovs: dict, dc_ov: np.ndarray,
+              loose: bool, subset: tuple[np.ndarray, np.ndarray] | None, curves: dict | None
+              ) -> tuple[dict, list[int]]:
+    """{metric: {"R11": [e, m, h], "R40": [...]}} and the evaluated truth count per difficulty."""
+    out: dict = {m: {"R11": [], "R40": []} for m in metrics}
+    n_gt = []
+    for d in range(len(DIFFICULTIES)):
+        ig_gt, ig_dt = clean(cls, d, p.gt.type, p.gt.bbox, p.gt.occluded, p.gt.truncated,
+                             p.dt.type, p.dt.bbox)
+        if subset is not None:
+            ig_gt, ig_dt = restrict(ig_gt, ig_dt, *subset)
+        n_gt.append(int((ig_gt == 0).sum()))
+        for m in metrics:
+            if m == "aos":
+                continue
+            with_aos = m == "2d" and "aos" in metrics
+            c = curve(p, ovs[m], ig_gt, ig_dt, min_overlap(cls, m, loose),
+                      dc_ov if m == "2d" else None, with_aos)
+            for key, fn in (("R11", c.r11), ("R40", c.r40)):
+                out[m][key].append(fn(c.precision))
+                if with_aos:
+                    out["aos"][key].append(fn(c.aos))
+            if curves is not None:
+                curves.setdefault(m, {})[DIFFICULTIES[d]] = c.precision.tolist()
+                if with_aos:
+                    curves.setdefault("aos", {})[DIFFICULTIES[d]] = c.aos.tolist()
+    return out, n_gt
+
+
+def evaluate(gt: Mapping[str, Sequence[Object3D]], dt: Mapping[str, Sequence[Object3D]],
+             classes: Iterable[str] = ("Car", "Pedestrian", "Cyclist"),
+             metrics: Iterable[str] = METRICS, range_bins: Sequence[float] | None = None,
+             progress: bool = False, match_iou: float = 0.5, min_score: float | None = None,
+             max_distance: float = DEFAULT_MAX_DISTANCE) -> EvalResult:
+    """Evaluate detections `dt` against truth `gt`, both `{frame id: objects}`.
+
+    Every truth frame is evaluated; a frame missing from `dt` has no detections; detection frames
+    without truth are ignored. `range_bins` (edges in metres, e.g. 0, 20, 40, 60, 80) adds AP per
+    ground distance bin and bins the error statistics. `match_iou`, `min_score` and `max_distance`
+    set the matched-pair statistics and the 004 volumetric metrics (see `breakdown`, `volumetric`).
+    """
+    classes, metrics = list(classes), list(metrics)
+    bad = [m for m in metrics if m not in METRICS]
+    if bad:
+        raise ValueError(f"unknown metric(s) {bad}; known: {', '.join(METRICS)}")
+    for c in classes:
+        min_overlap(c, "2d")  # unknown class -> clear error before any work
+    p = pack(gt, dt)
+    need = {m for m in metrics if m != "aos"} | ({"2d"} if "aos" in metrics else set())
+    ovs = {m: pair_overlaps(p, m) for m in ("2d", "bev", "3d") if m in need or m == "3d"}
+    dc_ov = dontcare_overlap(p.dt, p.dc)
+
+    ap, ap_loose, n_gt, precision, absent = {}, {}, {}, {}, {}
+    for cls in _progress(classes, progress, "AP"):
+        ab = _absent(p, cls, metrics)
+        if ab:
+            absent[cls] = ab
+        ms = [m for m in metrics if m not in ab]
+        if "aos" in ms and "2d" not in ms:
+            ms.insert(0, "2d")
+        curves: dict = {}
+        block, n_gt[cls] = _ap_block(p, cls, ms, ovs, dc_ov, False, None, curves)
+        ap[cls] = {m: block[m] for m in ms if m in metrics}
+        precision[cls] = {m: curves[m] for m in ap[cls]}
+        loose_ms = [m for m in ms if m in ("bev", "3d")]
+        ap_loose[cls], _ = _ap_block(p, cls, loose_ms, ovs, dc_ov, True, None, None)
+
+    edges = None if range_bins is None else np.asarray(range_bins, dtype=float)
+    if edges is not None and (len(edges) < 2 or np.any(np.diff(edges) <= 0)):
+        raise ValueError(f"range bins must be at least two increasing edges, got {list(range_bins)}")
+    bins_out = None
+    if edges is not None:
+        gt_bin, dt_bin = breakdown.bin_index(p.gt.distance, edges), breakdown.bin_index(p.dt.distance, edges)
+        bins_out = {"edges": edges.tolist(), "distance": "ground (camera x-z) distance of the location",
+                    "bins": []}
+        for k in _progress(list(range(len(edges) - 1)), progress, "range bins"):
+            entry = {"range": [float(edges[k]), float(edges[k + 1])], "ap": {}, "n_gt": {}}
+            for cls in classes:
+                ms = [m for m in metrics if m not in absent.get(cls, {})]
+                if "aos" in ms and "2d" not in ms:
+                    ms.insert(0, "2d")
+                block, entry["n_gt"][cls] = _ap_block(p, cls, ms, ovs, dc_ov, False,
+                                                      (gt_bin == k, dt_bin == k), None)
+                # no truth in the bin: AP is undefined, reported as None rather than 0
+                entry["ap"][cls] = {m: {key: [v if n else None for v, n in zip(vals, entry["n_gt"][cls])]
+                                        for key, vals in block[m].items()} for m in ms if m in metrics}
+            bins_out["bins"].append(entry)
+
+    errors: dict = {}
+    vol: dict = {}
+    for how in MATCHINGS:
+        errors[how], vol[how] = {}, {}
+        for cls in classes:
+            gi, dj = breakdown.match(p, cls, ovs["3d"], how, match_iou, min_score)
+            g7, d7 = p.gt.box7[gi], p.dt.box7[dj]
+            of_cls = (p.gt.type == cls.lower()) & p.gt.has_3d
+            e = {"all": {**breakdown.pair_errors(g7, d7), "n_gt": int(of_cls.sum())}}
+            v = {"all": volumetric(g7, d7, max_distance)}
+            if edges is not None:
+                kb, kg = breakdown.bin_index(p.gt.distance[gi], edges), breakdown.bin_index(p.gt.distance, edges)
+                e["bins"], v["bins"] = [], []
+                for k in range(len(edges) - 1):
+                    rng = [float(edges[k]), float(edges[k + 1])]
+                    sel = kb == k
+                    e["bins"].append({"range": rng, **breakdown.pair_errors(g7[sel], d7[sel]),
+                                      "n_gt": int((of_cls & (kg == k)).sum())})
+                    v["bins"].append({"range": rng, **volumetric(g7[sel], d7[sel], max_distance)})
+            errors[how][cls], vol[how][cls] = e, v
+
+    settings = {"frames": len(p.ids), "classes": classes, "metrics": metrics,
+                "strict_iou": {c: {m: min_overlap(c, m) for m in ("2d", "bev", "3d")} for c in classes},
+                "loose_iou": {c: {m: min_overlap(c, m, True) for m in ("2d", "bev", "3d")} for c in classes},
+                "match_iou": match_iou, "min_score": min_score, "max_distance": max_distance,
+                "centre_gate": f"max({breakdown.CENTRE_GATE_M} m, {breakdown.CENTRE_GATE_FRACTION:.0%} "
+                               "of the truth's ground distance)"}
+    return EvalResult(classes, ap, ap_loose, n_gt, precision, absent, bins_out, errors, vol, settings)

@@ -1,0 +1,264 @@
+"""The strongest LiDAR lifter here: per-frame road plane, the object's own returns separated in the
+frustum, an oriented box fitted to them with the network's size and orientation as priors.
+
+Per 2D box, nearest first (depth from the road point under the box's bottom edge):
+1. frustum returns above the road (ROAD_CUT .. MAX_HEIGHT), minus those already claimed by a
+   nearer box's fit (an occluder with its own 2D box);
+2. bird's-eye Euclidean clusters (a vertical surface stays connected however few beams hit it);
+   the cluster that best covers the box's columns at the depth the road predicts is the object;
+3. yaw by L-shape search (closeness criterion) over 0..90 degrees; of the four yaws it allows, the
+   one nearest the network's; too few or collinear-in-one-point returns keep the network's yaw;
+4. size: the network's, grown to contain the returns; the height is measured when the roof is hit;
+5. translation (x, z) by weighted least squares: the visible faces must touch the extreme returns
+   (L-shape), the box sides must project onto the 2D box's left and right sides, and the bottom
+   sits on the road plane; two passes (the corner that touches each side may change);
+6. fewer than MIN_POINTS returns: the image-only solution constrained to the road plane.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
+
+from kitti.boxes import box_corners, wrap_angle
+from kitti.calib import Calibration
+
+from .mono import solve_from_alpha
+from .points import FramePoints
+from .types import Box2D, Lifted, Prior
+
+ROAD_CUT = 0.15        # m above the fitted plane: lower returns are road
+MAX_HEIGHT = 4.0       # m above the plane: higher returns are no road user
+CLUSTER_R = 0.6        # m, bird's-eye linking distance
+MIN_POINTS = 4         # fewer returns: image-only fallback
+MIN_LSHAPE = 8         # fewer returns: keep the network's yaw
+LSHAPE_D0 = 0.05       # m, closeness floor of the L-shape criterion
+MAX_LSHAPE_POINTS = 300  # returns used for the yaw search (evenly strided)
+SIGMA_FACE = 0.05      # m, weight of a face row
+SIGMA_IMAGE = 0.15     # m at the object, weight of a 2D-side row (mesh silhouette vs box)
+CLAIM_MARGIN = 0.3     # m around a fitted box whose returns it claims
+SIGMA_CENTROID = 3.0   # m, weak pull to the returns' centroid
+FACE_BAND = 0.25       # m, returns this close to an extreme are "at" it
+FACE_SPREAD = 0.35     # of the face's width: returns spreading this far across it show the face
+FACE_TOL_PX = 3.0      # px, an extreme this close to a 2D side is the outline's end
+FACE_TOL_FRAC = 0.06   # ... or this share of the box width
+MERGE_SLACK = 0.3      # m, how much larger than the size prior's diagonal a merged set may be
+SMALL_CLASSES = ("Pedestrian", "Cyclist", "Person_sitting")
+
+_COARSE = np.deg2rad(np.arange(0.0, 90.0, 1.0))
+_FINE = np.deg2rad(np.arange(-1.0, 1.0001, 0.1))
+
+
+def _bev_clusters(xz: np.ndarray) -> np.ndarray:
+    pairs = cKDTree(xz).query_pairs(CLUSTER_R, output_type="ndarray")
+    n = len(xz)
+    g = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    return connected_components(g, directed=False)[1]
+
+
+def _closeness(xz: np.ndarray, thetas: np.ndarray) -> np.ndarray:
+    """L-shape closeness score per candidate yaw (Zhang et al. 2017's criterion)."""
+    c, s = np.cos(thetas)[:, None], np.sin(thetas)[:, None]
+    # heading of yaw ry in (x, z) is (cos ry, -sin ry); lateral (sin ry, cos ry)
+    a = c * xz[None, :, 0] - s * xz[None, :, 1]
+    b = s * xz[None, :, 0] + c * xz[None, :, 1]
+    da = np.minimum(a.max(1, keepdims=True) - a, a - a.min(1, keepdims=True))
+    db = np.minimum(b.max(1, keepdims=True) - b, b - b.min(1, keepdims=True))
+    return (1.0 / np.maximum(np.minimum(da, db), LSHAPE_D0)).sum(axis=1)
+
+
+def fit_yaw(xz: np.ndarray, ry_prior: float) -> float:
+    """The yaw of the rectangle the returns outline, of the four it allows the one nearest ry_prior."""
+    if len(xz) > MAX_LSHAPE_POINTS:
+        xz = xz[:: int(np.ceil(len(xz) / MAX_LSHAPE_POINTS))]
+    xz = xz - xz.mean(axis=0)
+    coarse = _COARSE[np.argmax(_closeness(xz, _COARSE))]
+    fine = coarse + _FINE
+    theta = fine[np.argmax(_closeness(xz, fine))]
+    k = np.round((ry_prior - theta) / (np.pi / 2))
+    return float(wrap_angle(theta + k * np.pi / 2))
+
+
+def _ground_depth(box: Box2D, calib: Calibration, plane: np.ndarray, cam: int) -> float:
+    """Distance to the road point seen under the middle of the box's bottom edge."""
+    u, v = box.centre[0], box.bbox[3]
+    p1 = calib.image_to_rect(np.array([[u, v]]), np.array([1.0]), cam)[0]
+    ray = p1 / np.linalg.norm(p1)
+    denom = ray @ plane[:3]
+    if denom >= -1e-6:  # bottom edge above the horizon: far away
+        return 200.0
+    return float(min(-plane[3] / denom, 200.0))
+
+
+def _fallback(box, prior, calib, image_size, plane, cam) -> Lifted:
+    sol = solve_from_alpha(prior.dims, prior.alpha, box.bbox, calib, image_size, plane, cam)
+    return Lifted(sol.location, sol.rotation_y, np.asarray(prior.dims, dtype=float), quality=0.3)
+
+
+def _faces(pxz: np.ndarray, puv: np.ndarray, e: np.ndarray, e_other: np.ndarray, size: float,
+           other: float, sensor_xz: np.ndarray, box: Box2D, width: int) -> float | None:
+    """The centre coordinate along axis e implied by a face the returns really show, or None.
+
+    Both extremes of the returns along e are candidate faces, the one facing the sensor first. An
+    extreme is a true face when the returns beside it spread across it (the face itself is seen),
+    or when they project onto a 2D box side that is not the image border (the object's outline
+    ends there); an extreme cut by the image border or by an occluder is neither.
+    """
+    p, q = pxz @ e, pxz @ e_other
+    lo, hi = np.percentile(p, [2.0, 98.0])
+    near_lo = sensor_xz @ e < 0.5 * (lo + hi)
+    tol = max(FACE_TOL_PX, FACE_TOL_FRAC * (box.bbox[2] - box.bbox[0]))
+    sides = [u for u, cut in ((box.bbox[0], box.bbox[0] <= 1.0), (box.bbox[2], box.bbox[2] >= width - 2.0))
+             if not cut]
+    for face, sign in (((lo, 1.0), (hi, -1.0)) if near_lo else ((hi, -1.0), (lo, 1.0))):
+        at = np.abs(p - face) < FACE_BAND
+        if not at.any():
+            continue
+        spread = np.ptp(q[at])
+        u = float(np.median(puv[at, 0]))
+        if spread >= FACE_SPREAD * other or any(abs(u - s) < tol for s in sides):
+            return face + sign * size / 2
+    return None
+
+
+def _translation(pxz: np.ndarray, puv: np.ndarray, dims: np.ndarray, ry: float, box: Box2D,
+                 sensor: np.ndarray, start: np.ndarray, calib: Calibration, image_size,
+                 plane: np.ndarray, cam: int) -> np.ndarray:
+    """Bottom-centre (x, y, z) by weighted least squares on faces, 2D sides and the road plane."""
+    h, w, l = dims
+    ea = np.array([np.cos(ry), -np.sin(ry)])  # heading in (x, z)
+    eb = np.array([np.sin(ry), np.cos(ry)])   # lateral
+    sxz = sensor[[0, 2]]
+    ray = start[[0, 2]] - sxz
+    ray = ray / max(np.linalg.norm(ray), 1e-9)
+    rows, rhs, wts = [], [], []
+    for e, eo, size, other in ((ea, eb, l, w), (eb, ea, w, l)):
+        centre = _faces(pxz, puv, e, eo, size, other, sxz, box, image_size[0])
+        if centre is not None:
+            rows.append(e)
+            rhs.append(centre)
+            wts.append((0.2 + 0.8 * abs(ray @ e)) / SIGMA_FACE)
+        rows.append(e)  # weak pull to the returns' centroid: only matters when nothing else binds
+        rhs.append(start[[0, 2]] @ e)
+        wts.append(1.0 / SIGMA_CENTROID)
+    P = calib.P(cam)
+    W = image_size[0]
+    n = plane[:3]
+
+    def lift_row(r3, r0):  # a row in (x, y, z) -> (x, z) with y on the plane
+        return np.array([r3[0] - r3[1] * n[0] / n[1], r3[2] - r3[1] * n[2] / n[1]]), \
+            -(r0 - r3[1] * plane[3] / n[1])
+    T = start.copy()
+    for _ in range(2):
+        offs = box_corners(np.array([[0, 0, 0, h, w, l, ry]]))[0]
+        uv, _ = calib.rect_to_image(offs + T, cam)
+        extra_rows, extra_rhs, extra_w = [], [], []
+        for u, pick, cut in ((box.bbox[0], np.argmin(uv[:, 0]), box.bbox[0] <= 1.0),
+                             (box.bbox[2], np.argmax(uv[:, 0]), box.bbox[2] >= W - 2.0)):
+            if cut:
+                continue
+            r = P[0] - u * P[2]
+            a2, b2 = lift_row(r[:3], r[3] + r[:3] @ offs[pick])
+            extra_rows.append(a2 / P[0, 0])
+            extra_rhs.append(b2 / P[0, 0])
+            extra_w.append(1.0 / SIGMA_IMAGE)
+        A = np.array(rows + extra_rows)
+        b = np.array(rhs + extra_rhs)
+        wv = np.array(wts + extra_w)
+        xz, *_ = np.linalg.lstsq(A * wv[:, None], b * wv, rcond=None)
+        y = -(n[0] * xz[0] + n[2] * xz[1] + plane[3]) / n[1]
+        T = np.array([xz[0], y, xz[1]])
+    return T
+
+
+def _merge(xz: np.ndarray, labels: np.ndarray, seed: int, diag: float) -> np.ndarray:
+    """The seed cluster plus the nearby clusters that keep the set car-sized: a far object's
+    bumper, bonnet and roof returns fall apart in bird's-eye view but belong together."""
+    take = labels == seed
+    others = [k for k in range(labels.max() + 1) if k != seed]
+    dist = {k: np.min(np.linalg.norm(xz[labels == k][:, None] - xz[take][None], axis=2))
+            for k in others}
+    for k in sorted(others, key=dist.get):
+        if dist[k] > diag:
+            break
+        trial = take | (labels == k)
+        pts = xz[trial]
+        if 2 * np.linalg.norm(pts - pts.mean(axis=0), axis=1).max() <= diag + MERGE_SLACK:
+            take = trial
+    return take
+
+
+def lift_fit(boxes: list[Box2D], priors: list[Prior], pts: FramePoints, calib: Calibration,
+             image_size: tuple[int, int], plane: np.ndarray, cam: int = 2) -> list[Lifted]:
+    n = len(boxes)
+    out: list[Lifted | None] = [None] * n
+    keep = (pts.height > ROAD_CUT) & (pts.height < MAX_HEIGHT)
+    free = keep.copy()  # not yet claimed by a nearer box
+    road_d = np.array([_ground_depth(b, calib, plane, cam) for b in boxes])
+    for i in np.argsort(road_d, kind="stable"):
+        box, prior = boxes[i], priors[i]
+        cand = pts.in_box(box.bbox)
+        cand = cand[free[cand]]
+        if len(cand) < MIN_POINTS:
+            out[i] = _fallback(box, prior, calib, image_size, plane, cam)
+            continue
+        xz = pts.rect[cand][:, [0, 2]]
+        labels = _bev_clusters(xz)
+        width = max(box.bbox[2] - box.bbox[0], 1.0)
+        h, w, l = (float(v) for v in prior.dims)
+        sigma = 0.5 + 0.12 * road_d[i]
+        best, best_score = -1, 0.0
+        for k in range(labels.max() + 1):
+            m = labels == k
+            if m.sum() < MIN_POINTS:
+                continue
+            u = pts.uv[cand[m], 0]
+            coverage = min(1.0, (u.max() - u.min()) / width)
+            dist = np.linalg.norm(xz[m] - pts.sensor[[0, 2]], axis=1)
+            gap = np.percentile(dist, 10) - road_d[i]
+            extent = np.ptp(xz[m], axis=0).max()
+            score = (coverage + 0.05) * min(1.0, m.sum() / 10) * np.exp(-0.5 * (gap / sigma) ** 2)
+            if extent > np.hypot(l, w) + 1.5:
+                score *= 0.3
+            if score > best_score:
+                best, best_score = k, score
+        if best < 0 or best_score < 0.02:
+            out[i] = _fallback(box, prior, calib, image_size, plane, cam)
+            continue
+        take = _merge(xz, labels, best, np.hypot(l, w))
+        obj = cand[take]
+        oxz = xz[take]
+        centroid = oxz.mean(axis=0)
+        ry_prior = float(wrap_angle(prior.alpha + np.arctan2(centroid[0], centroid[1])))
+        small = box.type in SMALL_CLASSES
+        ry = ry_prior if small or len(obj) < MIN_LSHAPE else fit_yaw(oxz, ry_prior)
+        ea = np.array([np.cos(ry), -np.sin(ry)])
+        eb = np.array([np.sin(ry), np.cos(ry)])
+        ext_a = np.subtract(*np.percentile(oxz @ ea, [98.0, 2.0]))
+        ext_b = np.subtract(*np.percentile(oxz @ eb, [98.0, 2.0]))
+        if not small:
+            l, w = max(l, ext_a), max(w, ext_b)
+        h = max(h, float(pts.height[obj].max()))  # roof returns lie a little below the top
+        dims = np.array([h, w, l])
+        start_xz = centroid
+        start_y = -(plane[0] * start_xz[0] + plane[2] * start_xz[1] + plane[3]) / plane[1]
+        start = np.array([start_xz[0], start_y, start_xz[1]])
+        T = _translation(oxz, pts.uv[obj], dims, ry, box, pts.sensor, start, calib, image_size,
+                         plane, cam)
+        # claim this object's returns so a farther box does not take them as its own
+        grown = np.array([[T[0], T[1] + CLAIM_MARGIN, T[2], h + 2 * CLAIM_MARGIN,
+                           w + 2 * CLAIM_MARGIN, l + 2 * CLAIM_MARGIN, ry]])
+        inside = _in_box_bev(pts.rect[cand], grown[0])
+        free[cand[inside]] = False
+        out[i] = Lifted(T, ry, dims, quality=0.5 + 0.5 * min(1.0, len(obj) / 30))
+    return out  # type: ignore[return-value]
+
+
+def _in_box_bev(p: np.ndarray, b: np.ndarray) -> np.ndarray:
+    d = p[:, [0, 2]] - b[[0, 2]]
+    c, s = np.cos(b[6]), np.sin(b[6])
+    a = d[:, 0] * c - d[:, 1] * s
+    lat = d[:, 0] * s + d[:, 1] * c
+    return (np.abs(a) <= b[5] / 2) & (np.abs(lat) <= b[4] / 2)

@@ -1,0 +1,137 @@
+"""Lift a dataset split: 2D boxes (labels or detection files) -> complete KITTI result lines, one
+file per frame of the split (an empty file where nothing is found)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from kitti.boxes import alpha_from_rotation_y
+from kitti.calib import Calibration
+from kitti.dataset import KittiDataset
+from kitti.errors import KittiFormatError
+from kitti.labels import Object3D, read_label, write_label
+
+from .fit import lift_fit
+from .frustum import lift_frustum
+from .ground import fit_ground_plane, normalise_plane
+from .mono import solve_from_alpha
+from .points import frame_points
+from .roadside import lift_roadside
+from .types import Box2D, Lifted, Prior
+
+METHODS = ("frustum", "fit", "mono", "roadside")
+LIDAR_METHODS = ("frustum", "fit")
+EVAL_CLASSES = ("Car", "Pedestrian", "Cyclist")
+FLAT_ROAD = np.array([0.0, -1.0, 0.0, 1.65])  # camera 1.65 m above a level road (KITTI rig)
+
+def oracle_boxes(labels: list[Object3D], classes=EVAL_CLASSES) -> list[Box2D]:
+    """The label_2 boxes of the evaluated classes, score 1."""
+    return [Box2D(o.type, o.bbox.copy(), 1.0) for o in labels if o.type in classes]
+
+
+def read_detections(det_dir: Path, fid: str) -> list[Box2D]:
+    path = det_dir / f"{fid}.txt"
+    if not path.exists():
+        raise KittiFormatError("detection file missing for a frame of the split", path)
+    boxes = []
+    for o in read_label(path):
+        if o.type == "DontCare":
+            continue
+        if o.score is None:
+            raise KittiFormatError("detection line without a score", path, None, "score")
+        boxes.append(Box2D(o.type, o.bbox.copy(), float(o.score)))
+    return boxes
+
+
+def truth_priors(boxes: list[Box2D], labels: list[Object3D]) -> list[Prior]:
+    """Size and alpha of the label each box came from (same bbox): the 'oracle size' ablation."""
+    out = []
+    for b in boxes:
+        match = [o for o in labels if np.allclose(o.bbox, b.bbox)]
+        if not match:
+            raise ValueError("--priors truth needs --boxes gt (a box matched no label)")
+        o = match[0]
+        out.append(Prior(np.array([o.h, o.w, o.l]), float(o.alpha)))
+    return out
+
+
+def _mono(box: Box2D, prior: Prior, calib: Calibration, size, plane) -> Lifted:
+    """Deep3DBox; a box cut on too many sides by the border needs the road to fix its depth."""
+    try:
+        sol = solve_from_alpha(prior.dims, prior.alpha, box.bbox, calib, size)
+        return Lifted(sol.location, sol.rotation_y, np.asarray(prior.dims, dtype=float), 0.5)
+    except ValueError:
+        sol = solve_from_alpha(prior.dims, prior.alpha, box.bbox, calib, size, plane)
+        return Lifted(sol.location, sol.rotation_y, np.asarray(prior.dims, dtype=float), 0.3)
+
+
+def lift_frame(method: str, boxes: list[Box2D], priors: list[Prior], calib: Calibration,
+               image_size: tuple[int, int], velodyne: np.ndarray | None,
+               plane_file: np.ndarray | None) -> list[Object3D]:
+    if method not in METHODS:
+        raise ValueError(f"unknown lifting method '{method}' (one of {', '.join(METHODS)})")
+    if not boxes:
+        return []
+    if method in LIDAR_METHODS and velodyne is None:
+        raise ValueError(f"method '{method}' needs velodyne/ scans")
+    road = normalise_plane(plane_file) if plane_file is not None else FLAT_ROAD
+    if method == "mono":
+        lifted = [_mono(b, p, calib, image_size, road) for b, p in zip(boxes, priors)]
+    elif method == "roadside":
+        if plane_file is None and velodyne is None:
+            raise ValueError("method 'roadside' needs the road plane (planes/) or velodyne/")
+        if plane_file is None:
+            road = fit_ground_plane(calib.lidar_to_rect(velodyne[:, :3].astype(float)))
+        lifted = lift_roadside(boxes, priors, calib, image_size, road)
+    elif method == "frustum":
+        pts = frame_points(velodyne, calib, None)
+        found = lift_frustum(boxes, priors, pts, calib)
+        lifted = [f if f is not None else _mono(b, p, calib, image_size, road)
+                  for f, b, p in zip(found, boxes, priors)]
+    else:  # fit: the road plane from this frame's own returns
+        rect = calib.lidar_to_rect(velodyne[:, :3].astype(float))
+        road = fit_ground_plane(rect)
+        pts = frame_points(velodyne, calib, road)
+        lifted = lift_fit(boxes, priors, pts, calib, image_size, road)
+    out = []
+    for b, lf in zip(boxes, lifted):
+        x, y, z = lf.location
+        h, w, l = lf.dims
+        out.append(Object3D(b.type, -1.0, -1, float(alpha_from_rotation_y(lf.rotation_y, x, z)),
+                            b.bbox, float(h), float(w), float(l), lf.location, lf.rotation_y,
+                            score=float(b.score * lf.quality)))
+    return out
+
+
+def lift_dataset(data: str | Path, boxes: str, method: str, out: str | Path, split: str | None,
+                 priors: str = "net", weights: str | Path | None = None,
+                 progress: bool = True) -> int:
+    """Write out/<id>.txt for every frame of the split; returns the number of 3D boxes written."""
+    ds = KittiDataset(data)
+    ids = ds.ids(split)
+    det_dir = None if boxes == "gt" else Path(boxes)
+    if det_dir is not None and not det_dir.is_dir():
+        raise KittiFormatError("detection folder not found", det_dir)
+    if priors == "net":
+        from .predictor import DEFAULT_WEIGHTS, Predictor
+        predictor = Predictor(weights or DEFAULT_WEIGHTS)
+    elif priors != "truth":
+        raise ValueError(f"unknown priors '{priors}' (net or truth)")
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    total = 0
+    for fid in tqdm(ids, desc=f"lift {method}", disable=not progress):
+        labels = ds.labels(fid) if (det_dir is None or priors == "truth") else None
+        b2d = oracle_boxes(labels) if det_dir is None else read_detections(det_dir, fid)
+        if priors == "truth":
+            pr = truth_priors(b2d, labels)
+        else:
+            pr = predictor(ds.image(fid), b2d) if b2d else []
+        velo = ds.velodyne(fid) if method in ("frustum", "fit", "roadside") else None
+        objs = lift_frame(method, b2d, pr, ds.calib(fid), ds.image_size(fid), velo, ds.planes(fid))
+        write_label(out / f"{fid}.txt", objs)
+        total += len(objs)
+    return total

@@ -1,0 +1,47 @@
+"""Size and orientation for 2D boxes from a trained network checkpoint."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from .crops import crop, to_tensor_layout
+from .multibin import decode
+from .network import CLASS_OF, NetConfig, SizeOrientationNet
+from .types import Box2D, Prior
+
+DEFAULT_WEIGHTS = Path(__file__).parent / "weights" / "sizeori_mnv2_w050_s96.pt"
+
+
+def load_network(path: str | Path) -> SizeOrientationNet:
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"{path}: no such lifter checkpoint (train one with "
+                                f"`testbed train-lifter`)")
+    ckpt = torch.load(path, map_location="cpu", weights_only=False)
+    try:
+        net = SizeOrientationNet(NetConfig(**ckpt["config"]))
+        net.load_state_dict(ckpt["model"])
+    except (KeyError, TypeError, RuntimeError) as exc:
+        raise ValueError(f"{path}: not a lifter checkpoint ({exc})") from None
+    return net.eval()
+
+
+class Predictor:
+    """Batched inference: one forward pass per frame."""
+
+    def __init__(self, weights: str | Path = DEFAULT_WEIGHTS):
+        self.net = load_network(weights)
+        self.size = self.net.cfg.crop
+
+    @torch.no_grad()
+    def __call__(self, image: np.ndarray, boxes: list[Box2D]) -> list[Prior]:
+        if not boxes:
+            return []
+        x = to_tensor_layout(np.stack([crop(image, b.bbox, self.size) for b in boxes]))
+        cls = torch.tensor([CLASS_OF.get(b.type, 0) for b in boxes])
+        dims, conf, cs = self.net(torch.from_numpy(x), cls)
+        alpha = decode(conf.numpy(), cs.numpy())
+        return [Prior(d.astype(float), float(a)) for d, a in zip(dims.numpy(), alpha)]

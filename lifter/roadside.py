@@ -1,0 +1,48 @@
+"""The gantry rig of 004: the camera's height, pan and tilt fix the road plane in the camera frame
+(planes/ gives it as a·x + b·y + c·z + d = 0 in rect coordinates: d is the height, the normal the
+tilt and roll), and an object stands on the road (bottom corners at road height, top at h).
+
+The 2D box's bottom-centre ray meets the road at the object's nearest visible bottom point; the
+box of the predicted size and orientation is then placed on the road so that its projection fits
+the 2D box (the 003 constraints plus the road row, solved together by least squares), which is
+the projected-corner form of the same back-projection and holds for any pan and tilt.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from kitti.boxes import wrap_angle
+from kitti.calib import Calibration
+
+from .mono import solve_from_alpha
+from .types import Box2D, Lifted, Prior
+
+
+def ground_point(u: float, v: float, calib: Calibration, plane: np.ndarray, cam: int = 2) -> np.ndarray:
+    """Where the ray through pixel (u, v) meets the road plane (rect frame); the closed-form inverse
+    of 004's camera model for a known height."""
+    o = calib.image_to_rect(np.array([[u, v]]), np.array([0.0]), cam)[0]
+    p1 = calib.image_to_rect(np.array([[u, v]]), np.array([1.0]), cam)[0]
+    d = p1 - o
+    denom = d @ plane[:3]
+    if abs(denom) < 1e-12:
+        raise ValueError(f"pixel ({u:.1f}, {v:.1f}) looks along the road plane")
+    return o - (o @ plane[:3] + plane[3]) / denom * d
+
+
+def lift_roadside(boxes: list[Box2D], priors: list[Prior], calib: Calibration,
+                  image_size: tuple[int, int], plane: np.ndarray, cam: int = 2) -> list[Lifted]:
+    out = []
+    for box, prior in zip(boxes, priors):
+        dims = np.asarray(prior.dims, dtype=float)
+        try:
+            sol = solve_from_alpha(dims, prior.alpha, box.bbox, calib, image_size, plane, cam)
+            out.append(Lifted(sol.location, sol.rotation_y, dims))
+        except ValueError:  # cut by the border on three sides: the bottom-centre ray alone
+            g = ground_point(box.centre[0], box.bbox[3], calib, plane, cam)
+            ray = g[[0, 2]] / np.linalg.norm(g[[0, 2]])
+            g[[0, 2]] += ray * min(dims[1], dims[2]) / 2  # the centre lies beyond the near face
+            ry = float(wrap_angle(prior.alpha + np.arctan2(g[0], g[2])))
+            out.append(Lifted(g, ry, dims, quality=0.5))
+    return out

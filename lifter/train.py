@@ -1,0 +1,184 @@
+"""Training of the size and orientation network on any KITTI-format dataset.
+
+Samples: every labelled Car/Van/Pedestrian/Cyclist (Truck as Car) with a 2D box at least MIN_HEIGHT
+px high, truncation <= MAX_TRUNC, occlusion <= 2. Crops are taken once with context around the box
+(CONTEXT x its size), so each epoch can jitter the box like a detector's without rereading images.
+The thesis's optimiser (SGD lr 1e-3, momentum 0.9) needs far more epochs than this CPU affords;
+Adam (003's choice) with a cosine schedule is used, with the thesis's early stop (10 epochs without
+improvement of the validation loss).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+import torch
+from tqdm import tqdm
+
+from kitti.dataset import KittiDataset
+from kitti.io import atomic_path, atomic_write_text
+
+from .crops import crop, jitter_box, to_tensor_layout
+from .multibin import decode, encode, wrap
+from .network import CLASS_OF, CLASSES, NetConfig, SizeOrientationNet, loss_fn
+
+MIN_HEIGHT = 15.0
+MAX_TRUNC = 0.5
+CONTEXT = 1.3
+PATIENCE = 10
+
+
+@dataclass
+class Samples:
+    crops: np.ndarray   # (N, C, C, 3) uint8 context crops, C = round(CONTEXT * S)
+    cls: np.ndarray     # (N,)
+    dims: np.ndarray    # (N, 3) h, w, l
+    alpha: np.ndarray   # (N,)
+
+
+def collect(ds: KittiDataset, ids: list[str], size: int, desc: str) -> Samples:
+    c = int(round(CONTEXT * size))
+    crops, cls, dims, alpha = [], [], [], []
+    for fid in tqdm(ids, desc=f"crops {desc}", leave=False):
+        objs = [o for o in ds.labels(fid) if o.type in CLASS_OF and o.height_px >= MIN_HEIGHT
+                and o.truncated <= MAX_TRUNC and o.occluded <= 2]
+        if not objs:
+            continue
+        img = ds.image(fid)
+        for o in objs:
+            ctr = (o.bbox[:2] + o.bbox[2:]) / 2
+            half = (o.bbox[2:] - o.bbox[:2]) * CONTEXT / 2
+            crops.append(crop(img, np.concatenate([ctr - half, ctr + half]), c))
+            cls.append(CLASS_OF[o.type])
+            dims.append([o.h, o.w, o.l])
+            alpha.append(o.alpha)
+    if not crops:
+        raise ValueError(f"{ds.root}: no usable labelled objects in the {desc} frames")
+    return Samples(np.stack(crops), np.array(cls), np.array(dims, dtype=np.float32),
+                   np.array(alpha))
+
+
+def batch(s: Samples, idx: np.ndarray, size: int, rng: np.random.Generator | None):
+    """Tensors for samples idx; with rng: jittered box, mirror, brightness/contrast."""
+    c = s.crops.shape[1]
+    lo = c * (1 - 1 / CONTEXT) / 2
+    box = np.array([lo, lo, c - lo, c - lo])
+    out = np.empty((len(idx), size, size, 3), dtype=np.uint8)
+    alpha = s.alpha[idx].copy()
+    for k, i in enumerate(idx):
+        b = jitter_box(box, rng) if rng is not None else box
+        img = crop(s.crops[i], b, size)
+        if rng is not None:
+            if rng.random() < 0.5:
+                img = img[:, ::-1]
+                alpha[k] = wrap(np.pi - alpha[k])
+            gain, bias = rng.uniform(0.75, 1.25), rng.uniform(-20, 20)
+            img = cv2.convertScaleAbs(img, alpha=gain, beta=bias)
+        out[k] = img
+    best, cs, cover = encode(alpha)
+    return (torch.from_numpy(to_tensor_layout(out)), torch.from_numpy(s.cls[idx]),
+            torch.from_numpy(s.dims[idx]), torch.from_numpy(best), torch.from_numpy(cs).float(),
+            torch.from_numpy(cover))
+
+
+def class_means(s: Samples) -> list[list[float]]:
+    default = NetConfig().class_means
+    return [s.dims[s.cls == k].mean(axis=0).round(4).tolist() if (s.cls == k).any() else default[k]
+            for k in range(len(CLASSES))]
+
+
+@torch.no_grad()
+def evaluate(net: SizeOrientationNet, s: Samples, size: int, bs: int = 128) -> dict[str, float]:
+    net.eval()
+    losses, dims_err, ang_err, n = [], [], [], 0
+    for start in range(0, len(s.cls), bs):
+        idx = np.arange(start, min(start + bs, len(s.cls)))
+        x, cls, dims_t, bin_t, cs_t, cover_t = batch(s, idx, size, None)
+        out = net(x, cls)
+        loss, _ = loss_fn(out, dims_t, bin_t, cs_t, cover_t)
+        losses.append(float(loss) * len(idx))
+        n += len(idx)
+        dims_err.append(np.abs(out[0].numpy() - dims_t.numpy()))
+        a = decode(out[1].numpy(), out[2].numpy())
+        ang_err.append(np.abs(wrap(a - s.alpha[idx])))
+    de, ae = np.concatenate(dims_err), np.rad2deg(np.concatenate(ang_err))
+    return {"loss": sum(losses) / n, "dims_mae_m": float(de.mean()),
+            "alpha_median_deg": float(np.median(ae)), "alpha_within_30deg": float((ae < 30).mean()),
+            "n": n}
+
+
+def train(data: str | Path, out: str | Path, epochs: int = 30, crop_size: int = 96,
+          width: float = 0.5, batch_size: int = 64, lr: float = 2e-3, seed: int = 0,
+          threads: int = 2, train_split: str | None = "train", val_split: str | None = "val",
+          resume: bool = False) -> dict:
+    torch.manual_seed(seed)
+    torch.set_num_threads(threads)
+    rng = np.random.default_rng(seed)
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    ds = KittiDataset(data)
+    root = Path(data)
+    if train_split and (root / "ImageSets" / f"{train_split}.txt").exists():
+        tr_ids = ds.ids(train_split)
+        va_ids = ds.ids(val_split) if (root / "ImageSets" / f"{val_split}.txt").exists() else []
+    else:
+        all_ids = ds.ids()
+        va_ids, tr_ids = all_ids[::10], [f for i, f in enumerate(all_ids) if i % 10]
+    if not va_ids:
+        all_ids = tr_ids
+        va_ids, tr_ids = all_ids[::10], [f for i, f in enumerate(all_ids) if i % 10]
+    tr = collect(ds, tr_ids, crop_size, "train")
+    va = collect(ds, va_ids, crop_size, "val")
+    cfg = NetConfig(width=width, crop=crop_size, class_means=class_means(tr))
+    net = SizeOrientationNet(cfg)
+    opt = torch.optim.Adam(net.parameters(), lr=lr, weight_decay=1e-5)
+    sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=epochs)
+    start_epoch, best_loss, stale = 0, float("inf"), 0
+    if resume and (out / "last.pt").exists():
+        ck = torch.load(out / "last.pt", map_location="cpu", weights_only=False)
+        net.load_state_dict(ck["model"])
+        opt.load_state_dict(ck["optim"])
+        sched.load_state_dict(ck["sched"])
+        start_epoch, best_loss, stale = ck["epoch"] + 1, ck["best_loss"], ck["stale"]
+        rng = np.random.default_rng([seed, start_epoch])
+    log = []
+    for epoch in range(start_epoch, epochs):
+        net.train()
+        perm = rng.permutation(len(tr.cls))
+        bar = tqdm(range(0, len(perm), batch_size), desc=f"epoch {epoch + 1}/{epochs}", leave=False)
+        for start in bar:
+            idx = perm[start:start + batch_size]
+            if len(idx) < 2:
+                continue
+            x, cls, dims_t, bin_t, cs_t, cover_t = batch(tr, idx, crop_size, rng)
+            loss, parts = loss_fn(net(x, cls), dims_t, bin_t, cs_t, cover_t)
+            opt.zero_grad()
+            loss.backward()
+            opt.step()
+            bar.set_postfix(loss=f"{float(loss):.3f}", **{k: f"{v:.3f}" for k, v in parts.items()})
+        sched.step()
+        metrics = {"epoch": epoch + 1, **evaluate(net, va, crop_size)}
+        log.append(metrics)
+        tqdm.write(json.dumps(metrics))
+        improved = metrics["loss"] < best_loss
+        best_loss, stale = (metrics["loss"], 0) if improved else (best_loss, stale + 1)
+        ck = {"model": net.state_dict(), "config": cfg.to_dict(), "epoch": epoch, "metrics": metrics,
+              "optim": opt.state_dict(), "sched": sched.state_dict(), "best_loss": best_loss,
+              "stale": stale, "seed": seed, "data": str(data)}
+        with atomic_path(out / "last.pt") as tmp:
+            torch.save(ck, tmp)
+        if improved:
+            with atomic_path(out / "best.pt") as tmp:
+                torch.save({k: ck[k] for k in ("model", "config", "epoch", "metrics", "seed", "data")}, tmp)
+        with open(out / "log.jsonl", "a") as f:
+            f.write(json.dumps(metrics) + "\n")
+        if stale >= PATIENCE:
+            break
+    summary = {"best_val_loss": best_loss, "epochs_run": len(log), "train_samples": len(tr.cls),
+               "val_samples": len(va.cls), "config": cfg.to_dict(), "last": log[-1] if log else None}
+    atomic_write_text(out / "summary.json", json.dumps(summary, indent=2))
+    return summary

@@ -1,0 +1,141 @@
+"""KITTI labels derived from the world and the renders, never typed in.
+
+Per actor:
+- silhouette: the union of its projected camera-facing triangles (cut at a 5 cm near plane), an
+  exact polygon in image_2 pixels (pixel centres at integer coordinates, as in KITTI);
+- 2D box: the bounds of the silhouette clipped to the image [-0.5, W-0.5] x [-0.5, H-0.5],
+  then clamped to pixel indices [0, W-1] x [0, H-1];
+- truncation: the share of the silhouette's area outside the image (the mesh, not the box);
+- visible share: the actor's instance-mask pixels over the area of its silhouette inside the
+  image (what it would cover with nothing in front of it); capped at 1;
+- occlusion: 0 if visible share >= `occlusion_partly_below` (default 0.8), 1 if >= 
+  `occlusion_largely_below` (default 0.3), else 2;
+- h, w, l: the mesh's extent in its own frame; location: its bottom-face centre in rectified
+  camera-0 coordinates; rotation_y from its heading in that frame (heading (cos ry, 0, -sin ry));
+  alpha from rotation_y and the location via kitti.boxes.
+An actor in view with no visible pixel gets no row. One whose 2D box is lower than
+`min_height_px`, whose distance (x-z plane, from camera 0) exceeds `max_distance`, or whose
+visible share is below `min_visible_share` gets a DontCare row with its 2D box.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import shapely
+
+from kitti.boxes import alpha_from_rotation_y, wrap_angle
+from kitti.labels import Object3D
+
+from .spec import LabelRules
+from .world import Actor, World
+
+NEAR = 0.05
+
+
+@dataclass
+class ActorTruth:
+    """What the labeller found for one actor (all actors, in view or not, go to meta/)."""
+
+    id: int
+    cls: str
+    box7: np.ndarray  # [x, y, z, h, w, l, ry] in rect camera-0 coords
+    in_view: bool
+    bbox: np.ndarray | None  # (4,) clipped 2D box, None when out of view
+    truncation: float
+    visible_px: int
+    visible_share: float
+    distance: float
+    label: str  # "label", "dontcare", "hidden" or "out_of_view"
+    occluded: int = -1
+
+
+def _clip_near(tri: np.ndarray) -> list[np.ndarray]:
+    """Cut triangles (N, 3, 3) crossing z = NEAR; returns polygons on the visible side."""
+    out = []
+    for t in tri:
+        poly = []
+        for i in range(3):
+            a, b = t[i], t[(i + 1) % 3]
+            if a[2] >= NEAR:
+                poly.append(a)
+            if (a[2] >= NEAR) != (b[2] >= NEAR):
+                s = (NEAR - a[2]) / (b[2] - a[2])
+                poly.append(a + s * (b - a))
+        if len(poly) >= 3:
+            out.append(np.array(poly))
+    return out
+
+
+def silhouette(actor: Actor, cam_from_world: np.ndarray, K: np.ndarray) -> shapely.Geometry | None:
+    """The exact image-plane silhouette of an actor, or None if it is behind the camera."""
+    M = cam_from_world @ actor.pose
+    polys = []
+    for part in actor.parts:
+        v = part.mesh.vertices @ M[:3, :3].T + M[:3, 3]
+        tri = v[part.mesh.faces]
+        if actor.recipe.get("kind") != "user":  # closed, outward-wound: back faces are hidden
+            n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+            tri = tri[np.einsum("ij,ij->i", n, tri.mean(axis=1)) < 0]
+        zmin = tri[:, :, 2].min(axis=1)
+        front = tri[zmin >= NEAR]
+        crossing = tri[(zmin < NEAR) & (tri[:, :, 2].max(axis=1) >= NEAR)]
+        if len(front):
+            uv = front @ K.T
+            polys.extend(list(uv[:, :, :2] / uv[:, :, 2:3]))
+        for p in _clip_near(crossing):
+            uv = p @ K.T
+            polys.append(uv[:, :2] / uv[:, 2:3])
+    if not polys:
+        return None
+    geoms = [shapely.Polygon(p) for p in polys]
+    geoms = [g for g in geoms if g.area > 0]
+    return shapely.union_all(geoms) if geoms else None
+
+
+def derive(world: World, instance: np.ndarray, rules: LabelRules) -> tuple[list[Object3D], list[ActorTruth]]:
+    """Label rows (objects first, DontCare after) and the per-actor truth of one frame."""
+    rig = world.rig
+    W, H = rig.width, rig.height
+    image = shapely.box(-0.5, -0.5, W - 0.5, H - 0.5)
+    cam = rig.cam2_from_world()
+    K = rig.intrinsics()
+    rect_from_world = rig.calib.velo_to_rect @ np.linalg.inv(rig.reference_pose)
+    counts = np.bincount(instance.ravel(), minlength=max((a.id for a in world.actors), default=0) + 1)
+    rows, dontcare, truths = [], [], []
+    for actor in world.actors:
+        allv = np.concatenate([p.mesh.vertices for p in actor.parts])
+        lo, hi = allv.min(axis=0), allv.max(axis=0)
+        l, w, h = hi - lo
+        centre = actor.pose @ np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2], 1.0])
+        loc = (rect_from_world @ centre)[:3]
+        head = rect_from_world[:3, :3] @ actor.pose[:3, 0]
+        ry = float(wrap_angle(np.arctan2(-head[2], head[0])))
+        box7 = np.array([*loc, h, w, l, ry])
+        dist = float(np.hypot(loc[0], loc[2]))
+        sil = silhouette(actor, cam, K)
+        inside = sil.intersection(image) if sil is not None else None
+        if inside is None or inside.area <= 0:
+            truths.append(ActorTruth(actor.id, actor.cls, box7, False, None, 1.0, 0, 0.0, dist,
+                                     "out_of_view"))
+            continue
+        x1, y1, x2, y2 = inside.bounds
+        bbox = np.array([max(x1, 0.0), max(y1, 0.0), min(x2, W - 1.0), min(y2, H - 1.0)])
+        trunc = float(np.clip(1.0 - inside.area / sil.area, 0.0, 1.0))
+        vis_px = int(counts[actor.id]) if actor.id < len(counts) else 0
+        share = float(min(1.0, vis_px / inside.area))
+        t = ActorTruth(actor.id, actor.cls, box7, True, bbox, trunc, vis_px, share, dist, "label")
+        truths.append(t)
+        if vis_px == 0:
+            t.label = "hidden"
+        elif (bbox[3] - bbox[1] < rules.min_height_px or dist > rules.max_distance
+              or share < rules.min_visible_share):
+            t.label = "dontcare"
+            dontcare.append(Object3D.dont_care(bbox))
+        else:
+            t.occluded = (0 if share >= rules.occlusion_partly_below
+                          else 1 if share >= rules.occlusion_largely_below else 2)
+            alpha = float(alpha_from_rotation_y(ry, loc[0], loc[2]))
+            rows.append(Object3D(actor.cls, round(trunc, 2), t.occluded, alpha, bbox, h, w, l, loc, ry))
+    return rows + dontcare, truths

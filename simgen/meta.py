@@ -1,0 +1,90 @@
+"""meta/NNNNNN.json: everything needed to rebuild a frame's world exactly, plus per-actor truth.
+
+Floats go through JSON as Python's shortest round-trip repr, so poses, sizes and scenery
+parameters come back bit for bit; meshes are rebuilt from their recipes (procedural parameters
+and seed, or a user mesh's path), the static world from its scenery parameters.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict
+from pathlib import Path
+
+import numpy as np
+
+from kitti.calib import KEYS, Calibration
+
+from .labels import ActorTruth
+from .meshes import build_actor_parts
+from .rigs import CameraRig
+from .scenery import build_scenery
+from .world import Actor, Light, Weather, World
+
+FORMAT = "simgen-meta/1"
+
+
+def _rig_to_json(rig: CameraRig) -> dict:
+    return {"kind": rig.kind, "width": rig.width, "height": rig.height,
+            "reference_pose": rig.reference_pose.tolist(), "params": rig.params,
+            "calib": {k: getattr(rig.calib, k).tolist() for k in KEYS}}
+
+
+def _rig_from_json(d: dict) -> CameraRig:
+    calib = Calibration(**{k: np.array(d["calib"][k]) for k in KEYS})
+    return CameraRig(d["kind"], calib, d["width"], d["height"], np.array(d["reference_pose"]),
+                     d["params"])
+
+
+def world_to_meta(world: World, spec: dict | None = None, truths: list[ActorTruth] | None = None,
+                  lidar_counts: dict[int, int] | None = None, lidar: dict | None = None) -> dict:
+    """A JSON-able dict of the world, its spec and (when given) the labeller's per-actor truth."""
+    by_id = {t.id: t for t in truths or []}
+    actors = []
+    for a in world.actors:
+        row = {"id": a.id, "class": a.cls, "mesh": a.recipe, "pose": a.pose.tolist(),
+               "velocity": np.asarray(a.velocity, float).tolist(), "yaw_rate": a.yaw_rate}
+        t = by_id.get(a.id)
+        if t is not None:
+            row.update({"box7": t.box7.tolist(), "in_view": t.in_view,
+                        "bbox": None if t.bbox is None else t.bbox.tolist(),
+                        "truncation": t.truncation, "visible_px": t.visible_px,
+                        "visible_share": t.visible_share, "occluded": t.occluded,
+                        "distance": t.distance, "label": t.label})
+        if lidar_counts is not None:
+            row["lidar_points"] = int(lidar_counts.get(a.id, 0))
+        actors.append(row)
+    return {"format": FORMAT, "seed": world.seed, "frame_index": world.frame_index, "spec": spec,
+            "rig": _rig_to_json(world.rig), "light": asdict(world.light),
+            "weather": asdict(world.weather), "sensor": world.sensor,
+            "lidar_pose": world.lidar_pose.tolist(),
+            "ego_velocity": np.asarray(world.ego_velocity, float).tolist(), "lidar": lidar,
+            "scenery": world.scenery, "actors": actors}
+
+
+def world_from_meta(meta: dict) -> World:
+    """The exact world a meta dict (or meta/NNNNNN.json, loaded) was written from."""
+    if meta.get("format") != FORMAT:
+        raise ValueError(f"not a {FORMAT} file (format: {meta.get('format')!r})")
+    static, _ = build_scenery(meta["scenery"])
+    actors = [Actor(a["id"], a["class"], build_actor_parts(a["mesh"]), np.array(a["pose"]),
+                    velocity=np.array(a["velocity"]), yaw_rate=a["yaw_rate"], recipe=a["mesh"])
+              for a in meta["actors"]]
+    return World(actors=actors, static=static, weather=Weather(**meta["weather"]),
+                 lidar_pose=np.array(meta["lidar_pose"]), ego_velocity=np.array(meta["ego_velocity"]),
+                 rig=_rig_from_json(meta["rig"]), light=Light(**meta["light"]),
+                 sensor=meta["sensor"], scenery=meta["scenery"], seed=meta["seed"],
+                 frame_index=meta["frame_index"])
+
+
+def dumps(meta: dict) -> str:
+    """Canonical text: sorted keys, so one world always gives the same bytes."""
+    return json.dumps(meta, sort_keys=True, indent=1) + "\n"
+
+
+def read_meta(path: str | Path) -> dict:
+    path = Path(path)
+    try:
+        return json.loads(path.read_text())
+    except json.JSONDecodeError as e:
+        raise ValueError(f"{path}: line {e.lineno}: not valid JSON: {e.msg}") from None

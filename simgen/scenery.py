@@ -1,0 +1,162 @@
+"""Static scenery: road surface, lane markings, curbs, sidewalks, verges, buildings, trees, poles,
+fences. A pure function of its parameters (kept in `World.scenery` and in meta/), merged into one
+part per material so the renderer and the LiDAR see few large meshes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import shapely
+import trimesh
+
+from .road import RoadLayout
+from .world import Material, Part
+
+ASPHALT = Material("asphalt", (0.09, 0.09, 0.10), 0.10)
+MARKING = Material("marking", (0.85, 0.85, 0.82), 0.60)
+CONCRETE = Material("curb", (0.45, 0.45, 0.43), 0.35)
+SIDEWALK = Material("sidewalk", (0.32, 0.31, 0.30), 0.30)
+VERGE = Material("verge", (0.14, 0.20, 0.08), 0.40)
+BARK = Material("bark", (0.12, 0.08, 0.05), 0.20)
+FOLIAGE = Material("foliage", (0.08, 0.20, 0.06), 0.45)
+METAL = Material("pole", (0.30, 0.31, 0.33), 0.40)
+FENCE = Material("fence", (0.35, 0.30, 0.25), 0.30)
+_FACADES = [(0.55, 0.50, 0.42), (0.40, 0.30, 0.25), (0.60, 0.58, 0.55), (0.35, 0.36, 0.40),
+            (0.65, 0.55, 0.40), (0.30, 0.25, 0.22)]
+MARK_Z = 0.01  # markings sit 1 cm above the asphalt so no renderer z-fights them
+VERGE_WIDTH = 60.0
+
+
+@dataclass
+class Obstacle:
+    """A static footprint actors must not overlap; `base` is the lowest height it occupies."""
+
+    polygon: shapely.Polygon
+    base: float = 0.0
+
+
+def _strip(road: RoadLayout, s: np.ndarray, d0: float, d1: float, z0: float, z1: float | None = None):
+    """A quad strip between lateral offsets d0 < d1 along s; horizontal at z0, or vertical
+    from z0 to z1 (d0 == d1). Faces wound to face up (horizontal) or towards +d (vertical)."""
+    n = len(s)
+    if z1 is None:
+        a = np.c_[road.xy(s, d0), np.full(n, z0)]
+        b = np.c_[road.xy(s, d1), np.full(n, z0)]
+    else:
+        a = np.c_[road.xy(s, d0), np.full(n, z1)]
+        b = np.c_[road.xy(s, d0), np.full(n, z0)]
+    v = np.concatenate([a, b])
+    i = np.arange(n - 1)
+    faces = np.concatenate([np.c_[i, i + 1, i + n], np.c_[i + 1, i + n + 1, i + n]])
+    return trimesh.Trimesh(v, faces, process=False)
+
+
+def _flip(m: trimesh.Trimesh) -> trimesh.Trimesh:
+    return trimesh.Trimesh(m.vertices, m.faces[:, ::-1], process=False)
+
+
+def _oriented_box(road: RoadLayout, s: float, d: float, z: float, l: float, w: float, h: float):
+    m = trimesh.creation.box(extents=[l, w, h])
+    m.apply_translation([0, 0, h / 2])
+    m.apply_transform(road.pose(s, d, z))
+    return m
+
+
+def _footprint(m: trimesh.Trimesh) -> shapely.Polygon:
+    return shapely.convex_hull(shapely.MultiPoint(m.vertices[:, :2]))
+
+
+def build_scenery(params: dict) -> tuple[list[Part], list[Obstacle]]:
+    """Static parts (world frame) and their footprints, from the scenery parameters.
+
+    `params["keep_clear"]` (optional): a list of (x, y) polygon vertices where no building, tree
+    or pole may stand, e.g. the line of sight of an orbit camera to its target.
+    """
+    road = RoadLayout(**params["road"])
+    clutter = params["clutter"]
+    rng = np.random.default_rng(params["seed"])
+    s = road.samples(road.s_min, road.s_max)
+    by_mat: dict[Material, list[trimesh.Trimesh]] = {}
+    obstacles: list[Obstacle] = []
+    clear = shapely.Polygon(params["keep_clear"]) if params.get("keep_clear") else None
+
+    def add(mat, mesh):
+        by_mat.setdefault(mat, []).append(mesh)
+
+    def blocks(mesh) -> bool:
+        return clear is not None and _footprint(mesh).intersects(clear)
+
+    add(ASPHALT, _strip(road, s, road.right_curb, road.left_curb, 0.0))
+    ch, sw = road.curb_height, road.sidewalk_width
+    for side in (-1, 1):
+        curb = road.right_curb if side < 0 else road.left_curb
+        outer = curb + side * sw
+        lo, hi = sorted((curb, outer))
+        add(SIDEWALK, _strip(road, s, lo, hi, ch))
+        face = _strip(road, s, curb, curb, 0.0, ch)
+        add(CONCRETE, face if side < 0 else _flip(face))
+        vlo, vhi = sorted((outer, outer + side * VERGE_WIDTH))
+        add(VERGE, _strip(road, s, vlo, vhi, ch))
+    # Markings: solid edge lines and divider, dashed lines between lanes of one direction.
+    w = 0.15
+    for d in (road.right_lane_edge + 0.25, road.left_lane_edge - 0.25):
+        add(MARKING, _strip(road, s, d - w / 2, d + w / 2, MARK_Z))
+    for off in (-0.12, 0.12):
+        add(MARKING, _strip(road, s, road.divider + off - w / 2, road.divider + off + w / 2, MARK_Z))
+    dash, gap = 3.0, 9.0
+    starts = np.arange(np.floor(road.s_min / (dash + gap)) * (dash + gap), road.s_max, dash + gap)
+    for k in range(1, road.lanes):
+        for base in (road.right_lane_edge, road.left_lane_edge):
+            d = base + k * road.lane_width if base == road.right_lane_edge else base - k * road.lane_width
+            for s0 in starts:
+                ss = road.samples(max(s0, road.s_min), min(s0 + dash, road.s_max), 1.0)
+                if ss[-1] > ss[0]:
+                    add(MARKING, _strip(road, ss, d - w / 2, d + w / 2, MARK_Z))
+    # Buildings, trees, poles and fences along both sides.
+    for side in (-1, 1):
+        curb = road.right_curb if side < 0 else road.left_curb
+        outer = curb + side * sw
+        if clutter["buildings"]:
+            sb = road.s_min - 10.0
+            while sb < road.s_max + 10.0:
+                length = rng.uniform(8.0, 30.0)
+                depth, height = rng.uniform(8.0, 16.0), rng.uniform(5.0, 20.0)
+                d = outer + side * (clutter["building_setback"] + depth / 2)
+                m = _oriented_box(road, sb + length / 2, d, ch, length, depth, height)
+                sb += length + rng.choice([0.0, rng.uniform(2.0, 10.0)])
+                if blocks(m):
+                    continue
+                add(Material("facade", _FACADES[int(rng.integers(len(_FACADES)))], 0.35), m)
+                obstacles.append(Obstacle(_footprint(m)))
+        elif clutter["fences"]:  # where no buildings line the sidewalk
+            m = _strip(road, s, outer - side * 0.3, outer - side * 0.3, ch, ch + 1.2)
+            add(FENCE, m if side < 0 else _flip(m))
+        n_trees = rng.poisson(clutter["trees_per_100m"] * (road.s_max - road.s_min) / 100.0)
+        for st in np.sort(rng.uniform(road.s_min, road.s_max, n_trees)):
+            d = outer - side * min(1.0, sw / 2)
+            trunk_h, r = rng.uniform(2.0, 3.0), rng.uniform(1.0, 2.0)
+            x, y = road.xy(st, d)
+            trunk = trimesh.creation.cylinder(radius=0.15, height=trunk_h, sections=8)
+            trunk.apply_translation([x, y, ch + trunk_h / 2])
+            crown = trimesh.creation.icosphere(subdivisions=1, radius=r)
+            crown.apply_translation([x, y, ch + trunk_h + 0.8 * r])
+            if blocks(crown):
+                continue
+            add(BARK, trunk)
+            add(FOLIAGE, crown)
+            obstacles.append(Obstacle(_footprint(trunk).buffer(0.1)))
+            obstacles.append(Obstacle(_footprint(crown), base=ch + trunk_h))
+        spacing = clutter["pole_spacing"]
+        if spacing > 0:
+            for sp in np.arange(road.s_min + rng.uniform(0, spacing), road.s_max, spacing):
+                x, y = road.xy(sp, curb + side * 0.5)
+                pole = trimesh.creation.cylinder(radius=0.09, height=7.0, sections=8)
+                pole.apply_translation([x, y, ch + 3.5])
+                if blocks(pole):
+                    continue
+                add(METAL, pole)
+                obstacles.append(Obstacle(_footprint(pole).buffer(0.1)))
+    parts = [Part(trimesh.util.concatenate(ms), mat) for mat, ms in by_mat.items()]
+    return parts, obstacles

@@ -1,0 +1,34 @@
+"""`testbed lift`: 2D boxes -> 3D boxes (KITTI result files) by one of the lifter's methods."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+
+@click.command()
+@click.option("--data", required=True, type=click.Path(exists=True, file_okay=False, path_type=Path),
+              help="KITTI-format dataset root.")
+@click.option("--boxes", required=True,
+              help="'gt' (the label_2 boxes of Car/Pedestrian/Cyclist, oracle) or a folder of "
+                   "detection result files (testbed detect).")
+@click.option("--method", required=True, type=click.Choice(["frustum", "fit", "mono", "roadside"]))
+@click.option("--split", default=None, help="ImageSets/<split>.txt [default: every frame].")
+@click.option("--out", required=True, type=click.Path(file_okay=False, path_type=Path),
+              help="Folder for the result files (<id>.txt).")
+@click.option("--priors", type=click.Choice(["net", "truth"]), default="net", show_default=True,
+              help="Size and orientation from the network, or from the labels (ablation; --boxes gt).")
+@click.option("--weights", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+              help="Size/orientation checkpoint [default: the shipped lifter/weights].")
+def lift(data: Path, boxes: str, method: str, split: str | None, out: Path, priors: str,
+         weights: Path | None) -> None:
+    """Lift the 2D boxes of every frame of DATA's split to 3D with METHOD."""
+    from kitti.errors import KittiFormatError
+    from lifter.pipeline import lift_dataset
+
+    try:
+        n = lift_dataset(data, boxes, method, out, split, priors=priors, weights=weights)
+    except (KittiFormatError, ValueError, FileNotFoundError) as e:
+        raise click.ClickException(str(e)) from None
+    click.echo(f"{n} 3D boxes written to {out}")

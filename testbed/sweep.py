@@ -1,0 +1,206 @@
+"""Sweeps: the same worlds re-scanned with other sensors, lifted and evaluated at every point.
+
+A sweep spec names the scenes and the axes. Every scan configuration re-scans the worlds of the
+scene's base dataset (`testbed rescan`) or drops rings from its 64-beam scan (`testbed
+reduce-beams`, the thesis's way), so across a sweep the images and labels are byte-identical and
+only the LiDAR changes. Scans and points are independent jobs for a backend; each marks itself done
+on disk, so a stopped sweep resumes where it stopped.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Literal
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+
+from . import stages
+from .backends import Backend
+
+LIDAR_METHODS = ("frustum", "fit")  # the others use the image alone
+
+
+class SceneRef(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    spec: Path
+    frames: int | None = Field(default=None, gt=0)
+    seed: int | None = None
+
+
+class Axes(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    lidar: list[str] = ["hdl64e"]
+    beams: list[int] = [64]
+    beam_mode: list[Literal["native", "dropped"]] = ["native"]
+    max_range: list[float | None] = [None]
+    method: list[Literal["frustum", "fit", "mono", "roadside"]] = ["fit"]
+    boxes: list[Literal["gt", "detector"]] = ["gt"]
+
+    @field_validator("beams")
+    @classmethod
+    def _positive(cls, v: list[int]) -> list[int]:
+        if any(b <= 0 for b in v):
+            raise ValueError("beam counts must be positive")
+        return v
+
+
+class SweepSpec(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    name: str
+    scenes: list[SceneRef] = Field(min_length=1)
+    axes: Axes = Axes()
+    split: str = "val"
+    range_bins: list[float] = [0, 10, 20, 30, 40, 50, 60, 70, 80, float("inf")]
+    data_dir: Path = Path("data/sweeps")
+
+
+class SweepSpecError(ValueError):
+    """A sweep spec that does not validate; the message names the file and the key."""
+
+
+def load_sweep(path: Path) -> SweepSpec:
+    try:
+        raw = yaml.safe_load(Path(path).read_text())
+    except yaml.YAMLError as e:
+        raise SweepSpecError(f"{path}: not valid YAML: {e}") from None
+    try:
+        spec = SweepSpec.model_validate(raw)
+    except ValidationError as e:
+        msgs = "; ".join(f"key '{'.'.join(str(p) for p in err['loc'])}': {err['msg']}"
+                         for err in e.errors())
+        raise SweepSpecError(f"{path}: {msgs}") from None
+    for scene in spec.scenes:  # spec paths are relative to the sweep file's folder or the cwd
+        if not scene.spec.is_absolute() and not scene.spec.exists():
+            scene.spec = Path(path).parent / scene.spec
+        if not scene.spec.exists():
+            raise SweepSpecError(f"{path}: key 'scenes.spec': file {scene.spec} not found")
+    return spec
+
+
+@dataclass(frozen=True)
+class ScanConfig:
+    lidar: str
+    beams: int
+    mode: str  # native | dropped
+    max_range: float | None
+
+    @property
+    def key(self) -> str:
+        rng = "max" if self.max_range is None else f"{self.max_range:g}m"
+        return f"{self.lidar}-{self.beams}b-{self.mode}-{rng}"
+
+
+@dataclass(frozen=True)
+class Point:
+    """One evaluated configuration: a scene, a scan, a lifting method and a source of 2D boxes."""
+
+    scene: str
+    scan: ScanConfig | None  # None for image-only methods (mono): independent of the LiDAR
+    method: str
+    boxes: str
+
+    @property
+    def key(self) -> str:
+        scan = self.scan.key if self.scan else "no-lidar"
+        return f"{self.scene}/{scan}/{self.method}-{self.boxes}"
+
+
+@dataclass
+class Plan:
+    spec: SweepSpec
+    root: Path
+    scans: list[ScanConfig] = field(default_factory=list)
+    points: list[Point] = field(default_factory=list)
+
+
+def plan(spec: SweepSpec, root: Path | None = None) -> Plan:
+    """All scan configurations and points of the sweep, in a fixed order."""
+    ax = spec.axes
+    scans: list[ScanConfig] = []
+    for lidar, beams, mode, rng in itertools.product(ax.lidar, ax.beams, ax.beam_mode, ax.max_range):
+        if mode == "dropped" and (beams >= 64 or 64 % beams):
+            continue  # rings are dropped from a 64-beam scan: only divisors of 64 below it
+        scans.append(ScanConfig(lidar, beams, mode, rng))
+    for s in list(scans):  # a dropped scan needs its 64-beam native parent
+        if s.mode == "dropped":
+            parent = ScanConfig(s.lidar, 64, "native", s.max_range)
+            if parent not in scans:
+                scans.insert(0, parent)
+    points = []
+    for scene in spec.scenes:
+        name = scene_name(scene)
+        for method, boxes in itertools.product(ax.method, ax.boxes):
+            if method in LIDAR_METHODS:
+                points += [Point(name, s, method, boxes) for s in scans]
+            else:
+                points.append(Point(name, None, method, boxes))
+    return Plan(spec, root or spec.data_dir / spec.name, scans, points)
+
+
+def scene_name(scene: SceneRef) -> str:
+    return f"{scene.spec.stem}-{stages.digest(scene.spec, scene.frames, scene.seed)}"
+
+
+@dataclass(frozen=True)
+class ScanJob:
+    base: Path
+    out: Path
+    config: ScanConfig
+    parent: Path | None  # the 64-beam scan rings are dropped from
+
+
+def run_scan_job(job: ScanJob) -> str:
+    c = job.config
+    if c.mode == "native":
+        stages.rescan(job.base, job.out, c.lidar, c.beams, c.max_range)
+    else:
+        stages.reduce_beams(job.parent, job.out, c.beams)
+    return job.out.name
+
+
+@dataclass(frozen=True)
+class PointJob:
+    point: Point
+    data: Path
+    boxes: str
+    out: Path
+    split: str
+    range_bins: tuple[float, ...]
+
+
+def run_point_job(job: PointJob) -> dict:
+    return stages.lift_and_evaluate(job.data, job.boxes, job.point.method, job.split, job.out,
+                                    list(job.range_bins))
+
+
+def execute(p: Plan, backend: Backend, workers: int = 1) -> list[tuple[Point, dict]]:
+    """Run every stage not yet marked done; return each point with its evaluation JSON."""
+    spec = p.spec
+    bases, detections = {}, {}
+    for scene in spec.scenes:
+        name = scene_name(scene)
+        bases[name] = stages.generate(scene.spec, p.root / name / "base", scene.frames, scene.seed,
+                                      workers)
+        if "detector" in spec.axes.boxes:
+            detections[name] = stages.detect(bases[name], p.root / name / "detections" , spec.split)
+    scan_dirs: dict[tuple[str, ScanConfig], Path] = {}
+    for name in bases:
+        for c in p.scans:
+            scan_dirs[name, c] = p.root / name / "scans" / c.key
+    native = [ScanJob(bases[n], d, c, None) for (n, c), d in scan_dirs.items() if c.mode == "native"]
+    dropped = [ScanJob(bases[n], d, c, scan_dirs[n, ScanConfig(c.lidar, 64, "native", c.max_range)])
+               for (n, c), d in scan_dirs.items() if c.mode == "dropped"]
+    for jobs in (native, dropped):
+        if jobs:
+            backend.map(run_scan_job, jobs, desc="scans")
+    jobs = []
+    for pt in p.points:
+        data = scan_dirs[pt.scene, pt.scan] if pt.scan else bases[pt.scene]
+        boxes = "gt" if pt.boxes == "gt" else str(detections[pt.scene])
+        jobs.append(PointJob(pt, data, boxes, p.root / "points" / pt.key, spec.split,
+                             tuple(spec.range_bins)))
+    results = backend.map(run_point_job, jobs, desc="points")
+    return list(zip(p.points, results))
