@@ -41,7 +41,8 @@ SIGMA_IMAGE = 0.15     # m at the object, weight of a 2D-side row (mesh silhouet
 CLAIM_MARGIN = 0.3     # m around a fitted box whose returns it claims
 SIGMA_CENTROID = 3.0   # m, weak pull to the returns' centroid
 FACE_BAND = 0.25       # m, returns this close to an extreme are "at" it
-FACE_SPREAD = 0.35     # of the face's width: returns spreading this far across it show the face
+OCCLUDER_PX = 6.0      # px beyond an extreme searched for a nearer return (an occluder)
+OCCLUDER_GAP = 0.5     # m, how much nearer that return must be
 FACE_TOL_PX = 3.0      # px, an extreme this close to a 2D side is the outline's end
 FACE_TOL_FRAC = 0.06   # ... or this share of the box width
 MERGE_SLACK = 0.3      # m, how much larger than the size prior's diagonal a merged set may be
@@ -97,35 +98,44 @@ def _fallback(box, prior, calib, image_size, plane, cam) -> Lifted:
     return Lifted(sol.location, sol.rotation_y, np.asarray(prior.dims, dtype=float), quality=0.3)
 
 
-def _faces(pxz: np.ndarray, puv: np.ndarray, e: np.ndarray, e_other: np.ndarray, size: float,
-           other: float, sensor_xz: np.ndarray, box: Box2D, width: int) -> float | None:
-    """The centre coordinate along axis e implied by a face the returns really show, or None.
+def _faces(pxz: np.ndarray, puv: np.ndarray, e: np.ndarray, size: float, sensor_xz: np.ndarray,
+           box: Box2D, width: int, scene: tuple[np.ndarray, np.ndarray]) -> float | None:
+    """The centre coordinate along axis e implied by a true face of the returns, or None.
 
-    Both extremes of the returns along e are candidate faces, the one facing the sensor first. An
-    extreme is a true face when the returns beside it spread across it (the face itself is seen),
-    or when they project onto a 2D box side that is not the image border (the object's outline
-    ends there); an extreme cut by the image border or by an occluder is neither.
+    The extreme of the returns facing the sensor is a face (or the end of the face seen edge-on)
+    unless the outline is cut there: by the image border (it projects onto a 2D side at the border)
+    or by an occluder (nearer returns right beside it in the image). The far extreme is only
+    trusted where it projects onto a 2D side that is not the border: the object's outline ends
+    there (a far roof or bonnet return is no face). `scene` = (u, range) of every above-road
+    return in the 2D box, for the occluder test.
     """
-    p, q = pxz @ e, pxz @ e_other
+    p = pxz @ e
     lo, hi = np.percentile(p, [2.0, 98.0])
     near_lo = sensor_xz @ e < 0.5 * (lo + hi)
     tol = max(FACE_TOL_PX, FACE_TOL_FRAC * (box.bbox[2] - box.bbox[0]))
-    sides = [u for u, cut in ((box.bbox[0], box.bbox[0] <= 1.0), (box.bbox[2], box.bbox[2] >= width - 2.0))
-             if not cut]
-    for face, sign in (((lo, 1.0), (hi, -1.0)) if near_lo else ((hi, -1.0), (lo, 1.0))):
+    x1, x2 = box.bbox[0], box.bbox[2]
+    border = [u for u, cut in ((x1, x1 <= 1.0), (x2, x2 >= width - 2.0)) if cut]
+    sides = [u for u, cut in ((x1, x1 <= 1.0), (x2, x2 >= width - 2.0)) if not cut]
+    u_all, r_all = scene
+    u_mid = float(np.median(puv[:, 0]))
+    order = ((lo, 1.0, True), (hi, -1.0, False)) if near_lo else ((hi, -1.0, True), (lo, 1.0, False))
+    for face, sign, near in order:
         at = np.abs(p - face) < FACE_BAND
-        if not at.any():
-            continue
-        spread = np.ptp(q[at])
         u = float(np.median(puv[at, 0]))
-        if spread >= FACE_SPREAD * other or any(abs(u - s) < tol for s in sides):
+        rng = float(np.linalg.norm(pxz[at] - sensor_xz, axis=1).min())
+        if any(abs(u - b) < tol for b in border):
+            continue
+        out = (u_all - u) * np.sign(u - u_mid)  # > 0: beyond the extreme, away from the object
+        if np.any((out > 0) & (out < OCCLUDER_PX + tol) & (r_all < rng - OCCLUDER_GAP)):
+            continue
+        if near or any(abs(u - s) < tol for s in sides):
             return face + sign * size / 2
     return None
 
 
 def _translation(pxz: np.ndarray, puv: np.ndarray, dims: np.ndarray, ry: float, box: Box2D,
                  sensor: np.ndarray, start: np.ndarray, calib: Calibration, image_size,
-                 plane: np.ndarray, cam: int) -> np.ndarray:
+                 plane: np.ndarray, cam: int, scene: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
     """Bottom-centre (x, y, z) by weighted least squares on faces, 2D sides and the road plane."""
     h, w, l = dims
     ea = np.array([np.cos(ry), -np.sin(ry)])  # heading in (x, z)
@@ -134,8 +144,8 @@ def _translation(pxz: np.ndarray, puv: np.ndarray, dims: np.ndarray, ry: float, 
     ray = start[[0, 2]] - sxz
     ray = ray / max(np.linalg.norm(ray), 1e-9)
     rows, rhs, wts = [], [], []
-    for e, eo, size, other in ((ea, eb, l, w), (eb, ea, w, l)):
-        centre = _faces(pxz, puv, e, eo, size, other, sxz, box, image_size[0])
+    for e, size in ((ea, l), (eb, w)):
+        centre = _faces(pxz, puv, e, size, sxz, box, image_size[0], scene)
         if centre is not None:
             rows.append(e)
             rhs.append(centre)
@@ -245,8 +255,11 @@ def lift_fit(boxes: list[Box2D], priors: list[Prior], pts: FramePoints, calib: C
         start_xz = centroid
         start_y = -(plane[0] * start_xz[0] + plane[2] * start_xz[1] + plane[3]) / plane[1]
         start = np.array([start_xz[0], start_y, start_xz[1]])
+        inbox = pts.in_box(box.bbox)
+        inbox = inbox[keep[inbox]]
+        scene = (pts.uv[inbox, 0], np.linalg.norm(pts.rect[inbox][:, [0, 2]] - pts.sensor[[0, 2]], axis=1))
         T = _translation(oxz, pts.uv[obj], dims, ry, box, pts.sensor, start, calib, image_size,
-                         plane, cam)
+                         plane, cam, scene)
         # claim this object's returns so a farther box does not take them as its own
         grown = np.array([[T[0], T[1] + CLAIM_MARGIN, T[2], h + 2 * CLAIM_MARGIN,
                            w + 2 * CLAIM_MARGIN, l + 2 * CLAIM_MARGIN, ry]])

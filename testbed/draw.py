@@ -71,7 +71,7 @@ def draw_bev(ax, points: np.ndarray | None, calib: Calibration, objects: list[Ob
     if points is not None and len(points):
         keep = (points[:, 0] > -10) & (points[:, 0] < extent) & (np.abs(points[:, 1]) < extent / 2)
         p = points[keep]
-        ax.scatter(-p[:, 1], p[:, 0], s=0.05, c=np.clip(p[:, 2], -2.5, 1.5), cmap="viridis",
+        ax.scatter(-p[:, 1], p[:, 0], s=0.4, c=np.clip(p[:, 2], -2.0, 1.0), cmap="cool",
                    linewidths=0, rasterized=True)
     for o in objects:
         if not _has_3d(o):

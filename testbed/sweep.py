@@ -152,10 +152,22 @@ class ScanJob:
     parent: Path | None  # the 64-beam scan rings are dropped from
 
 
+def native_sensor(lidar: str, beams: int) -> tuple[str, int | None]:
+    """The sensor that natively has `beams` lasers: the named preset at its own count, else a uniform
+    sensor over the HDL-64E's vertical field of view (on a real preset `--beams` drops rings, which
+    is the `dropped` mode)."""
+    from simgen.lidar import preset
+
+    if lidar != "uniform" and len(preset(lidar).elevations_deg) == beams:
+        return lidar, None
+    return "uniform", beams
+
+
 def run_scan_job(job: ScanJob) -> str:
     c = job.config
     if c.mode == "native":
-        stages.rescan(job.base, job.out, c.lidar, c.beams, c.max_range)
+        name, beams = native_sensor(c.lidar, c.beams)
+        stages.rescan(job.base, job.out, name, beams, c.max_range)
     else:
         stages.reduce_beams(job.parent, job.out, c.beams)
     return job.out.name

@@ -33,6 +33,7 @@ def test_reduce_64_to_32_keeps_exactly_every_second_ring(hdl64_scan):
 def test_preset_beams_subsamples_like_reduce_beams(hdl64_scan):
     full, half = preset("hdl64e"), preset("hdl64e", beams=32)
     assert half.elevations_deg == full.elevations_deg[::2]
+    np.testing.assert_array_equal(half.laser_biases(), full.laser_biases()[::2])  # same unit
     s_half = scan(street_world(7), half.ideal(), 0)
     s_full = scan(street_world(7), full.ideal(), 0)
     mask, new_ring = reduce_rings(s_full.ring, 64, 32)

@@ -25,6 +25,7 @@ class Curve:
     aos: np.ndarray | None  # (41,) when orientation is scored
     n_gt: int
     n_thresholds: int
+    recall: float  # with every detection (no score threshold); 0 without truth
 
     @staticmethod
     def r11(p: np.ndarray) -> float:
@@ -71,10 +72,13 @@ def curve(p: Packed, ov: np.ndarray, ig_gt: np.ndarray, ig_dt: np.ndarray, min_o
     scores = matching.first_pass(*common, float(min_ov))
     thr = matching.thresholds(scores, float(n_gt), float(N_SAMPLE_PTS)) if n_gt else np.zeros(0)
     use_dc = dc_ov is not None
+    # one extra threshold below every score gives the recall with all detections
     tp, fp, _fn, sim = matching.second_pass(
         *common, p.gt.alpha, p.dt.alpha, dc_ov if use_dc else np.zeros(len(ig_dt)), use_dc,
-        compute_aos, float(min_ov), thr)
+        compute_aos, float(min_ov), np.append(thr, -np.inf))
+    recall = float(tp[-1] / n_gt) if n_gt else 0.0
     n = len(thr)
+    tp, fp, sim = tp[:n], fp[:n], sim[:n]
     prec = np.zeros(N_SAMPLE_PTS)
     den = tp + fp
     prec[:n] = np.where(den > 0, tp / np.maximum(den, 1), 0.0)
@@ -84,4 +88,4 @@ def curve(p: Packed, ov: np.ndarray, ig_gt: np.ndarray, ig_dt: np.ndarray, min_o
         aos = np.zeros(N_SAMPLE_PTS)
         aos[:n] = np.where(den > 0, sim / np.maximum(den, 1), 0.0)
         aos = np.maximum.accumulate(aos[::-1])[::-1]
-    return Curve(prec, aos, n_gt, n)
+    return Curve(prec, aos, n_gt, n, recall)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Iterable, Mapping, Sequence
 
 import numpy as np
@@ -48,33 +49,47 @@ def _absent(p: Packed, cls: str, metrics: Sequence[str]) -> dict:
     return out
 
 
+@dataclass
+class _Block:
+    """AP {metric: {"R11": [e, m, h], "R40": [...]}}, recall with all detections {metric: [e, m, h]},
+    evaluated truth per difficulty and the precision curves {metric: {difficulty: [41]}}."""
+
+    ap: dict
+    recall: dict
+    n_gt: list
+    curves: dict
+
+
 def _ap_block(p: Packed, cls: str, metrics: Sequence[str], ovs: dict, dc_ov: np.ndarray,
-              loose: bool, subset: tuple[np.ndarray, np.ndarray] | None, curves: dict | None
-              ) -> tuple[dict, list[int]]:
-    """{metric: {"R11": [e, m, h], "R40": [...]}} and the evaluated truth count per difficulty."""
-    out: dict = {m: {"R11": [], "R40": []} for m in metrics}
-    n_gt = []
+              loose: bool, subset: tuple[np.ndarray, np.ndarray] | None) -> _Block:
+    """Every difficulty and metric of one class; AOS rides on the 2D matching."""
+    b = _Block({m: {"R11": [], "R40": []} for m in metrics}, {m: [] for m in metrics}, [], {})
     for d in range(len(DIFFICULTIES)):
         ig_gt, ig_dt = clean(cls, d, p.gt.type, p.gt.bbox, p.gt.occluded, p.gt.truncated,
                              p.dt.type, p.dt.bbox)
         if subset is not None:
             ig_gt, ig_dt = restrict(ig_gt, ig_dt, *subset)
-        n_gt.append(int((ig_gt == 0).sum()))
+        b.n_gt.append(int((ig_gt == 0).sum()))
         for m in metrics:
             if m == "aos":
                 continue
             with_aos = m == "2d" and "aos" in metrics
             c = curve(p, ovs[m], ig_gt, ig_dt, min_overlap(cls, m, loose),
                       dc_ov if m == "2d" else None, with_aos)
-            for key, fn in (("R11", c.r11), ("R40", c.r40)):
-                out[m][key].append(fn(c.precision))
-                if with_aos:
-                    out["aos"][key].append(fn(c.aos))
-            if curves is not None:
-                curves.setdefault(m, {})[DIFFICULTIES[d]] = c.precision.tolist()
-                if with_aos:
-                    curves.setdefault("aos", {})[DIFFICULTIES[d]] = c.aos.tolist()
-    return out, n_gt
+            pairs = [(m, c.precision)] + ([("aos", c.aos)] if with_aos else [])
+            for name, vals in pairs:
+                b.ap[name]["R11"].append(c.r11(vals))
+                b.ap[name]["R40"].append(c.r40(vals))
+                b.recall[name].append(c.recall)
+                b.curves.setdefault(name, {})[DIFFICULTIES[d]] = vals.tolist()
+    return b
+
+
+def _metrics_for(cls_absent: dict, metrics: Sequence[str]) -> list[str]:
+    ms = [m for m in metrics if m not in cls_absent]
+    if "aos" in ms and "2d" not in ms:
+        ms.insert(0, "2d")
+    return ms
 
 
 def evaluate(gt: Mapping[str, Sequence[Object3D]], dt: Mapping[str, Sequence[Object3D]],
@@ -95,29 +110,29 @@ def evaluate(gt: Mapping[str, Sequence[Object3D]], dt: Mapping[str, Sequence[Obj
         raise ValueError(f"unknown metric(s) {bad}; known: {', '.join(METRICS)}")
     for c in classes:
         min_overlap(c, "2d")  # unknown class -> clear error before any work
+    edges = None if range_bins is None else np.asarray(range_bins, dtype=float)
+    if edges is not None and (len(edges) < 2 or np.any(np.diff(edges) <= 0)):
+        raise ValueError(f"range bins must be at least two increasing edges, got {list(range_bins)}")
     p = pack(gt, dt)
     need = {m for m in metrics if m != "aos"} | ({"2d"} if "aos" in metrics else set())
     ovs = {m: pair_overlaps(p, m) for m in ("2d", "bev", "3d") if m in need or m == "3d"}
     dc_ov = dontcare_overlap(p.dt, p.dc)
 
-    ap, ap_loose, n_gt, precision, absent = {}, {}, {}, {}, {}
+    ap, ap_loose, n_gt, recall, precision, absent = {}, {}, {}, {}, {}, {}
     for cls in _progress(classes, progress, "AP"):
         ab = _absent(p, cls, metrics)
         if ab:
             absent[cls] = ab
-        ms = [m for m in metrics if m not in ab]
-        if "aos" in ms and "2d" not in ms:
-            ms.insert(0, "2d")
-        curves: dict = {}
-        block, n_gt[cls] = _ap_block(p, cls, ms, ovs, dc_ov, False, None, curves)
-        ap[cls] = {m: block[m] for m in ms if m in metrics}
-        precision[cls] = {m: curves[m] for m in ap[cls]}
-        loose_ms = [m for m in ms if m in ("bev", "3d")]
-        ap_loose[cls], _ = _ap_block(p, cls, loose_ms, ovs, dc_ov, True, None, None)
+        ms = _metrics_for(ab, metrics)
+        b = _ap_block(p, cls, ms, ovs, dc_ov, False, None)
+        keep = [m for m in ms if m in metrics]
+        ap[cls] = {m: b.ap[m] for m in keep}
+        recall[cls] = {m: b.recall[m] for m in keep}
+        precision[cls] = {m: b.curves[m] for m in keep}
+        n_gt[cls] = b.n_gt
+        ap_loose[cls] = _ap_block(p, cls, [m for m in ms if m in ("bev", "3d")], ovs, dc_ov, True,
+                                  None).ap
 
-    edges = None if range_bins is None else np.asarray(range_bins, dtype=float)
-    if edges is not None and (len(edges) < 2 or np.any(np.diff(edges) <= 0)):
-        raise ValueError(f"range bins must be at least two increasing edges, got {list(range_bins)}")
     bins_out = None
     if edges is not None:
         gt_bin, dt_bin = breakdown.bin_index(p.gt.distance, edges), breakdown.bin_index(p.dt.distance, edges)
@@ -126,14 +141,12 @@ def evaluate(gt: Mapping[str, Sequence[Object3D]], dt: Mapping[str, Sequence[Obj
         for k in _progress(list(range(len(edges) - 1)), progress, "range bins"):
             entry = {"range": [float(edges[k]), float(edges[k + 1])], "ap": {}, "n_gt": {}}
             for cls in classes:
-                ms = [m for m in metrics if m not in absent.get(cls, {})]
-                if "aos" in ms and "2d" not in ms:
-                    ms.insert(0, "2d")
-                block, entry["n_gt"][cls] = _ap_block(p, cls, ms, ovs, dc_ov, False,
-                                                      (gt_bin == k, dt_bin == k), None)
+                ms = _metrics_for(absent.get(cls, {}), metrics)
+                b = _ap_block(p, cls, ms, ovs, dc_ov, False, (gt_bin == k, dt_bin == k))
+                entry["n_gt"][cls] = b.n_gt
                 # no truth in the bin: AP is undefined, reported as None rather than 0
-                entry["ap"][cls] = {m: {key: [v if n else None for v, n in zip(vals, entry["n_gt"][cls])]
-                                        for key, vals in block[m].items()} for m in ms if m in metrics}
+                entry["ap"][cls] = {m: {key: [v if n else None for v, n in zip(vals, b.n_gt)]
+                                        for key, vals in b.ap[m].items()} for m in ms if m in metrics}
             bins_out["bins"].append(entry)
 
     errors: dict = {}
@@ -163,4 +176,5 @@ def evaluate(gt: Mapping[str, Sequence[Object3D]], dt: Mapping[str, Sequence[Obj
                 "match_iou": match_iou, "min_score": min_score, "max_distance": max_distance,
                 "centre_gate": f"max({breakdown.CENTRE_GATE_M} m, {breakdown.CENTRE_GATE_FRACTION:.0%} "
                                "of the truth's ground distance)"}
-    return EvalResult(classes, ap, ap_loose, n_gt, precision, absent, bins_out, errors, vol, settings)
+    return EvalResult(classes, ap, ap_loose, n_gt, recall, precision, absent, bins_out, errors, vol,
+                      settings)

@@ -26,6 +26,7 @@ class EvalResult:
     ap: dict
     ap_loose: dict
     n_gt: dict  # {class: [easy, moderate, hard]} evaluated truth boxes
+    recall: dict  # {class: {metric: [e, m, h]}} recall with every detection (strict IoU)
     precision: dict  # {class: {metric: {difficulty: [41 monotone precisions]}}} (strict)
     absent: dict = field(default_factory=dict)  # {class: {metric: reason}}
     range_bins: dict | None = None
@@ -34,7 +35,7 @@ class EvalResult:
     settings: dict = field(default_factory=dict)
 
     def to_json(self) -> dict:
-        return {"ap": self.ap, "ap_loose": self.ap_loose, "n_gt": self.n_gt,
+        return {"ap": self.ap, "ap_loose": self.ap_loose, "n_gt": self.n_gt, "recall": self.recall,
                 "absent": self.absent, "range_bins": self.range_bins, "errors": self.errors,
                 "volumetric": self.volumetric, "precision": self.precision,
                 "settings": self.settings}

@@ -53,6 +53,7 @@ class LidarSpec:
     noise_sigma: float = 0.015  # per-ray Gaussian range noise (m)
     bias_sigma: float = 0.01  # fixed per-laser range bias (m), drawn once per sensor unit
     unit_seed: int = 0  # the sensor unit: seeds the per-laser biases, constant across frames
+    lasers: tuple[int, ...] = ()  # the unit's laser number per beam (empty: 0, 1, 2, ...)
     dropout: float = 0.02  # random loss of a detected return
     dark_range: float = 50.0  # range on a 10 % target (datasheet)
     bright_range: float = 120.0  # range on a rho_bright target (datasheet)
@@ -71,6 +72,8 @@ class LidarSpec:
                              "descending (ring 0 = top beam)")
         if len(el) > 255:
             raise ValueError(f"LidarSpec {self.name!r}: at most 255 beams (ring is uint8)")
+        if self.lasers and len(self.lasers) != len(el):
+            raise ValueError(f"LidarSpec {self.name!r}: lasers needs one entry per beam")
         if not 0 < self.azimuth_step_deg <= 10:
             raise ValueError(f"LidarSpec {self.name!r}: azimuth_step_deg must be in (0, 10]")
         if not 0 <= self.min_range < self.max_range:
@@ -108,8 +111,12 @@ class LidarSpec:
         return rel * np.exp(-2.0 * beta * dist) if beta > 0 else rel
 
     def laser_biases(self) -> np.ndarray:
-        """The unit's fixed per-laser range biases (m), the same for every frame it scans."""
-        return np.random.default_rng(self.unit_seed).normal(0.0, self.bias_sigma, self.beams)
+        """The unit's fixed per-laser range biases (m), the same for every frame it scans; a
+        beam subset (`beams=N`) keeps the biases of the lasers it keeps."""
+        lasers = np.asarray(self.lasers or range(self.beams), dtype=np.int64)
+        table = np.random.default_rng(self.unit_seed).normal(0.0, self.bias_sigma,
+                                                             max(256, int(lasers.max()) + 1))
+        return table[lasers]
 
     def ideal(self) -> LidarSpec:
         """The same geometry with every error source off: exact ranges, all returns kept."""
@@ -164,8 +171,9 @@ def preset(name: str, beams: int | None = None, max_range: float | None = None,
         raise ValueError(f"unknown LiDAR preset {name!r}; choose hdl64e, hdl32e, vlp32c, vlp16 "
                          "or uniform")
     if beams is not None and beams != spec.beams:
-        spec = replace(spec, name=f"{spec.name}-{beams}", elevations_deg=_subsample(
-            spec.elevations_deg, int(beams), spec.name))
+        elev = _subsample(spec.elevations_deg, int(beams), spec.name)
+        spec = replace(spec, name=f"{spec.name}-{beams}", elevations_deg=elev,
+                       lasers=tuple(range(0, spec.beams, spec.beams // len(elev))))
     if max_range is not None:
         spec = replace(spec, max_range=float(max_range))
     return spec
