@@ -1,8 +1,8 @@
 """KITTI labels derived from the world and the renders, never typed in.
 
 Per actor:
-- silhouette: the union of its projected camera-facing triangles (cut at a 5 cm near plane), an
-  exact polygon in image_2 pixels (pixel centres at integer coordinates, as in KITTI);
+- silhouette: the union of its parts' projections (cut at a 5 cm near plane), an exact polygon
+  in image_2 pixels (pixel centres at integer coordinates, as in KITTI);
 - 2D box: the bounds of the silhouette clipped to the image [-0.5, W-0.5] x [-0.5, H-0.5],
   then clamped to pixel indices [0, W-1] x [0, H-1];
 - truncation: the share of the silhouette's area outside the image (the mesh, not the box);
@@ -68,28 +68,56 @@ def _clip_near(tri: np.ndarray) -> list[np.ndarray]:
     return out
 
 
-def silhouette(actor: Actor, cam_from_world: np.ndarray, K: np.ndarray) -> shapely.Geometry | None:
-    """The exact image-plane silhouette of an actor, or None if it is behind the camera."""
-    M = cam_from_world @ actor.pose
-    polys = []
-    for part in actor.parts:
-        v = part.mesh.vertices @ M[:3, :3].T + M[:3, 3]
-        tri = v[part.mesh.faces]
-        if actor.recipe.get("kind") != "user":  # closed, outward-wound: back faces are hidden
-            n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-            tri = tri[np.einsum("ij,ij->i", n, tri.mean(axis=1)) < 0]
-        zmin = tri[:, :, 2].min(axis=1)
-        front = tri[zmin >= NEAR]
-        crossing = tri[(zmin < NEAR) & (tri[:, :, 2].max(axis=1) >= NEAR)]
-        if len(front):
-            uv = front @ K.T
-            polys.extend(list(uv[:, :, :2] / uv[:, :, 2:3]))
-        for p in _clip_near(crossing):
-            uv = p @ K.T
-            polys.append(uv[:, :2] / uv[:, 2:3])
-    if not polys:
+def _project(v: np.ndarray, K: np.ndarray) -> np.ndarray:
+    uvw = v @ K.T
+    return uvw[..., :2] / uvw[..., 2:3]
+
+
+def _convex_part_outline(v: np.ndarray, edges: np.ndarray, K: np.ndarray) -> shapely.Geometry | None:
+    """Image outline of a convex part: the hull of its projected vertices in front of the near
+    plane and of its edges' crossings of that plane (the projection of the clipped solid)."""
+    front = v[v[:, 2] >= NEAR]
+    a, b = v[edges[:, 0]], v[edges[:, 1]]
+    cross = (a[:, 2] >= NEAR) != (b[:, 2] >= NEAR)
+    if np.any(cross):
+        a, b = a[cross], b[cross]
+        s = (NEAR - a[:, 2]) / (b[:, 2] - a[:, 2])
+        front = np.concatenate([front, a + s[:, None] * (b - a)])
+    if len(front) < 3:
         return None
-    geoms = [shapely.Polygon(p) for p in polys]
+    return shapely.convex_hull(shapely.MultiPoint(_project(front, K)))
+
+
+def silhouette(actor: Actor, cam_from_world: np.ndarray, K: np.ndarray) -> shapely.Geometry | None:
+    """The exact image-plane silhouette of an actor, or None if it is behind the camera.
+
+    Procedural actors are unions of convex parts: the silhouette is the union of the parts'
+    projected hulls (one vectorised shapely call). User meshes may be anything: the union of
+    their projected triangles."""
+    M = cam_from_world @ actor.pose
+    meshes = [p.mesh for p in actor.parts]
+    verts = [np.asarray(m.vertices) @ M[:3, :3].T + M[:3, 3] for m in meshes]
+    if max(float(v[:, 2].max()) for v in verts) < NEAR:
+        return None
+    geoms = []
+    if actor.recipe.get("kind") != "user":
+        whole = [i for i, v in enumerate(verts) if v[:, 2].min() >= NEAR]
+        if whole:
+            pts = np.concatenate([_project(verts[i], K) for i in whole])
+            idx = np.concatenate([np.full(len(verts[i]), k) for k, i in enumerate(whole)])
+            geoms += list(shapely.convex_hull(shapely.multipoints(pts, indices=idx)))
+        for i, v in enumerate(verts):
+            if v[:, 2].min() < NEAR <= v[:, 2].max():
+                g = _convex_part_outline(v, np.asarray(meshes[i].edges_unique), K)
+                if g is not None:
+                    geoms.append(g)
+    else:
+        for m, v in zip(meshes, verts):
+            tri = v[np.asarray(m.faces)]
+            zmin = tri[:, :, 2].min(axis=1)
+            cut = (zmin < NEAR) & (tri[:, :, 2].max(axis=1) >= NEAR)
+            geoms += list(shapely.polygons(_project(tri[zmin >= NEAR], K)))
+            geoms += [shapely.Polygon(_project(q, K)) for q in _clip_near(tri[cut])]
     geoms = [g for g in geoms if g.area > 0]
     return shapely.union_all(geoms) if geoms else None
 

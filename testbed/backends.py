@@ -50,7 +50,7 @@ class RayBackend:
             if self.address:
                 ray.init(address=self.address, **kwargs)
             else:
-                ray.init(num_cpus=self.workers, **kwargs)
+                ray.init(num_cpus=self.workers, _node_ip_address="127.0.0.1", **kwargs)
         self._ray = ray
 
     def map(self, fn: Callable[[Any], Any], jobs: Sequence[Any], desc: str = "jobs") -> list[Any]:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import click
 
+from .cmd_evaluate import evaluate
 from .cmd_generate import generate
 from .cmd_lift import lift
 from .cmd_train_lifter import train_lifter
@@ -20,6 +21,7 @@ def cli() -> None:
     KITTI evaluation, swept over LiDAR beams, range and weather."""
 
 
+cli.add_command(evaluate)
 cli.add_command(generate)
 cli.add_command(lift)
 cli.add_command(train_lifter)

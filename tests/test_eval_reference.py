@@ -283,3 +283,24 @@ def test_aos_absent_when_any_alpha_is_minus_10():
         assert "alpha" in res.absent[cls]["aos"]
         ref, _ = _reference(gt, dt, cls, "2d")
         assert res.ap[cls]["2d"] == ref
+
+
+def test_pair_overlaps_equal_the_dense_kitti_iou_bit_for_bit():
+    from kitti.eval.frames import pack
+    from kitti.eval.overlaps import dontcare_overlap, pair_overlaps
+
+    gt, dt = random_set(7, frames=12)
+    p = pack(gt, dt)
+    ovs = {m: pair_overlaps(p, m) for m in ("2d", "bev", "3d")}
+    dc = dontcare_overlap(p.dt, p.dc)
+    for f, fid in enumerate(p.ids):
+        truth = [o for o in gt[fid] if o.type != "DontCare"]
+        dets = dt.get(fid, [])
+        block = slice(p.pair_start[f], p.pair_start[f + 1])
+        for m, ov in ovs.items():
+            dense = overlap_matrix(dets, truth, m)  # (D, G) from kitti.iou
+            assert np.array_equal(ov[block].reshape(len(truth), len(dets)), dense.T), (fid, m)
+        care = [o for o in gt[fid] if o.type == "DontCare"]
+        for j, d in enumerate(dets):
+            want = max([dc_overlap(d, c) for c in care], default=0.0)
+            assert dc[p.dt.start[f] + j] == want

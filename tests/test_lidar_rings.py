@@ -56,6 +56,21 @@ def test_ring_recovery_from_azimuth_wraps_is_exact(hdl64_scan):
     assert np.array_equal(ring, hdl64_scan.ring)
 
 
+def test_ring_recovery_survives_rings_that_start_past_the_back(hdl64_scan):
+    # rotate each ring's point sequence a little (a laser whose revolution starts a few
+    # firings late): its first points move to its end, so the azimuth wraps inside the ring
+    s = hdl64_scan
+    rng = np.random.default_rng(1)
+    order = []
+    for ring in range(64):
+        ix = np.flatnonzero(s.ring == ring)
+        order.append(np.roll(ix, -int(rng.integers(0, 6))))
+    order = np.concatenate(order)
+    ring, method = recover_rings(s.points[order], 64)
+    assert method == "azimuth-wrap"
+    assert np.array_equal(ring, s.ring[order])
+
+
 def test_ring_recovery_falls_back_to_elevation_clustering():
     s = scan(street_world(8, moving_cars=0), preset("hdl64e").ideal(), 0)
     perm = np.random.default_rng(0).permutation(len(s))  # order lost: no wraps to find

@@ -3,8 +3,9 @@ of a real KITTI scan that has no side file.
 
 Recovery. KITTI .bin points are stored laser by laser, each laser one revolution in firing
 order, so within a ring the azimuth atan2(y, x) moves steadily one way and it jumps back by
-about 2 pi where the next ring starts. Rings are the runs between those jumps, numbered from
-the top by their median elevation. When the jumps do not give exactly the expected ring count
+about 2 pi where the next ring starts. Rings are the runs between those jumps (a few points
+cut off by a laser that starts just past the back rejoin their ring), numbered from the top
+by their median elevation. When the jumps do not give exactly the expected ring count
 (an empty ring, a ring cut at the back), rings come from 1-D k-means on the elevation angle
 instead, started from the HDL-64E table.
 """
@@ -69,11 +70,32 @@ def rings_from_elevation(points: np.ndarray, beams: int, iterations: int = 30) -
     return (beams - 1 - lab).astype(np.int64)
 
 
+def merge_short_runs(runs: np.ndarray, el: np.ndarray, share: float = 0.05) -> np.ndarray:
+    """Fold runs shorter than `share` of the median run into the neighbour nearest in elevation.
+
+    A laser whose revolution starts just past the back wraps once inside its own ring, which
+    cuts a few points off its start or end; they rejoin the ring they share an elevation with.
+    """
+    runs = runs.copy()
+    while True:
+        ids, start, length = np.unique(runs, return_index=True, return_counts=True)
+        short = np.flatnonzero(length < share * np.median(length))
+        if len(ids) < 2 or not len(short):
+            break
+        k = short[np.argmin(length[short])]
+        med = [np.median(el[runs == ids[j]]) if 0 <= j < len(ids) else np.inf
+               for j in (k - 1, k, k + 1)]
+        into = k - 1 if abs(med[0] - med[1]) <= abs(med[2] - med[1]) else k + 1
+        runs[runs == ids[k]] = ids[into]
+    return np.unique(runs, return_inverse=True)[1]
+
+
 def recover_rings(points: np.ndarray, beams: int = 64) -> tuple[np.ndarray, str]:
     """Ring per point (0 = top) of a KITTI-ordered scan, and the method that found it."""
-    runs = rings_from_azimuth_wraps(points)
-    if len(points) and runs[-1] + 1 == beams:
-        el = elevation(points)
+    el = elevation(points)
+    runs = merge_short_runs(rings_from_azimuth_wraps(points), el) if len(points) else \
+        np.zeros(0, np.int64)
+    if len(points) and runs.max() + 1 == beams:
         med = np.array([np.median(el[runs == k]) for k in range(beams)])
         rank = np.empty(beams, np.int64)
         rank[np.argsort(-med)] = np.arange(beams)

@@ -43,24 +43,25 @@ class Target:
 
 def placement_times(world: World, spec: LidarSpec, iterations: int = 3) -> np.ndarray:
     """Per actor, the time the head faces its centre; a fixed point of t -> bearing(t)."""
-    n = len(world.actors)
-    if n == 0 or not spec.motion:
-        return np.zeros(n)
+    t = np.zeros(len(world.actors))
+    if not spec.motion:
+        return t
     r_inv = world.lidar_pose[:3, :3].T
-    centres = []
-    for a in world.actors:
-        b = a.mesh().bounds
-        centres.append(0.5 * (b[0] + b[1]))
-    centres = np.asarray(centres)  # actor frame
-    t = np.zeros(n)
-    for _ in range(iterations):
-        c_w = np.array([(a.pose_at(ti) @ np.append(c, 1.0))[:3]
-                        for a, c, ti in zip(world.actors, centres, t)])
-        o = world.lidar_pose_at(t)[:, :3, 3]
-        p = (c_w - o) @ r_inv.T
-        t = np.clip(sweep_time_of_azimuth(np.arctan2(p[:, 1], p[:, 0]), spec),
-                    -spec.period / 2, spec.period / 2)
+    for i, a in enumerate(world.actors):
+        if not (np.any(np.asarray(a.velocity) != 0) or a.yaw_rate != 0):
+            continue  # a still actor is the same at every time
+        v = np.concatenate([_arr(p.mesh.vertices) for p in a.parts])
+        centre = np.append(0.5 * (v.min(axis=0) + v.max(axis=0)), 1.0)  # actor frame
+        for _ in range(iterations):
+            p = r_inv @ ((a.pose_at(t[i]) @ centre)[:3] - world.lidar_pose_at(t[i])[:3, 3])
+            t[i] = np.clip(sweep_time_of_azimuth(np.arctan2(p[1], p[0]), spec),
+                           -spec.period / 2, spec.period / 2)
     return t
+
+
+def _arr(a) -> np.ndarray:
+    """A plain ndarray view of a trimesh TrackedArray (skips its per-access hashing)."""
+    return np.asarray(a).view(np.ndarray)
 
 
 def build_target(world: World, spec: LidarSpec) -> Target:
@@ -72,10 +73,10 @@ def build_target(world: World, spec: LidarSpec) -> Target:
 
     def add(mesh, transform, aid: int, s: int, rho: float) -> None:
         nonlocal nv
-        v = np.asarray(mesh.vertices, dtype=float)
+        v = _arr(mesh.vertices)
         if transform is not None:
             v = v @ transform[:3, :3].T + transform[:3, 3]
-        f = np.asarray(mesh.faces, dtype=np.int64) + nv
+        f = _arr(mesh.faces) + nv
         verts.append(v)
         faces.append(f)
         nf = len(f)
@@ -106,6 +107,7 @@ def build_target(world: World, spec: LidarSpec) -> Target:
         v_all = np.ascontiguousarray(np.concatenate(verts), dtype=np.float32)
         f_all = np.ascontiguousarray(np.concatenate(faces), dtype=np.int32)
         TriangleMesh(scene, v_all, f_all)
+        scene.run(np.zeros((1, 3), np.float32), np.ones((1, 3), np.float32))  # build the BVH now
         tri = v_all[f_all].astype(np.float64)
         ng = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
         inv_ng = (1.0 / np.maximum(ng, 1e-30)).astype(np.float32)

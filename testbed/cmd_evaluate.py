@@ -1,0 +1,67 @@
+"""`testbed evaluate`: the official KITTI evaluation of a result folder against a label folder."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import click
+
+from kitti.errors import KittiFormatError
+from kitti.io import atomic_write_text
+from kitti.splits import read_split
+
+
+def _floats(ctx, param, value: str | None) -> list[float] | None:
+    if value is None:
+        return None
+    try:
+        return [float(v) for v in value.split(",") if v.strip()]
+    except ValueError:
+        raise click.BadParameter(f"'{value}' is not a comma-separated list of numbers") from None
+
+
+@click.command()
+@click.option("--gt", "gt_dir", required=True, type=click.Path(exists=True, file_okay=False, path_type=Path),
+              help="Label folder (label_2) with the truth.")
+@click.option("--pred", "pred_dir", required=True,
+              type=click.Path(exists=True, file_okay=False, path_type=Path),
+              help="Result folder: one KITTI file with scores per frame; a missing file = no detections.")
+@click.option("--split", "split", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+              help="Frame ids to evaluate (ImageSets format); default every label file.")
+@click.option("--json", "json_out", type=click.Path(dir_okay=False, path_type=Path),
+              help="Write AP and breakdowns as JSON (key 'ap': {class: {metric: {R11, R40}}}).")
+@click.option("--range-bins", "range_bins", callback=_floats,
+              help="Distance bin edges in metres, e.g. 0,20,40,60,80 (ground x-z distance).")
+@click.option("--classes", default="Car,Pedestrian,Cyclist", show_default=True,
+              help="Comma-separated classes.")
+@click.option("--match-iou", default=0.5, show_default=True, type=float,
+              help="3D IoU above which a pair is matched for the error statistics.")
+@click.option("--min-score", default=None, type=float,
+              help="Detections below this score are left out of the error statistics (not of AP).")
+@click.option("--max-distance", default=80.0, show_default=True, type=float,
+              help="D of the volumetric location precision (the sensor's perceived range), metres.")
+def evaluate(gt_dir: Path, pred_dir: Path, split: Path | None, json_out: Path | None,
+             range_bins: list[float] | None, classes: str, match_iou: float, min_score: float | None,
+             max_distance: float) -> None:
+    """Evaluate detections in PRED against truth in GT: 2D, bird's-eye, 3D and AOS, AP|R11 and
+    AP|R40, easy/moderate/hard, exactly as the KITTI devkit; plus AP per distance bin,
+    matched-pair errors and the volumetric metrics."""
+    from kitti.eval import evaluate as run_eval
+    from kitti.eval import load_annotations
+
+    try:
+        ids = read_split(split) if split else None
+        gt = load_annotations(gt_dir, ids, progress=True)
+        if not gt:
+            raise click.UsageError(f"no label files in {gt_dir}")
+        dt = load_annotations(pred_dir, list(gt), missing_ok=True, progress=True)
+        res = run_eval(gt, dt, classes=[c.strip() for c in classes.split(",") if c.strip()],
+                       range_bins=range_bins, progress=True, match_iou=match_iou,
+                       min_score=min_score, max_distance=max_distance)
+    except (KittiFormatError, ValueError) as e:
+        raise click.ClickException(str(e)) from None
+    click.echo(res.table(), nl=False)
+    if json_out:
+        atomic_write_text(json_out, json.dumps(res.to_json(), indent=1) + "\n")
+        click.echo(f"wrote {json_out}")

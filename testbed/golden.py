@@ -1,0 +1,72 @@
+"""Golden scenes: the whole pipeline on tiny committed scenes, its key numbers pinned in a file.
+
+`tests/test_golden.py` runs it and compares with `tests/golden/expected.json` within TOLERANCE, so a
+change anywhere (meshes, renderer, LiDAR, detector, lifter, evaluation) that moves a number is caught.
+When a change is meant to move them, regenerate the expectation and commit it with the change:
+
+    .venv/bin/python -m testbed.golden --update
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import tempfile
+from pathlib import Path
+
+from .backends import LocalBackend
+from .sweep import Axes, SceneRef, SweepSpec, execute, plan
+
+GOLDEN_DIR = Path(__file__).resolve().parent.parent / "tests" / "golden"
+EXPECTED = GOLDEN_DIR / "expected.json"
+# AP in points (0-100) and errors in metres / degrees; the pipeline is deterministic on one machine,
+# the tolerance absorbs floating-point differences between BLAS builds.
+TOLERANCE = {"ap": 0.5, "error": 0.01}
+
+
+def golden_sweep(root: Path) -> SweepSpec:
+    return SweepSpec(
+        name="golden",
+        scenes=[SceneRef(spec=GOLDEN_DIR / "street.yaml")],
+        axes=Axes(lidar=["hdl64e"], beams=[64, 16], beam_mode=["native"],
+                  method=["fit", "frustum", "mono"], boxes=["gt", "detector"]),
+        split="val", range_bins=[0, 20, 40, float("inf")], data_dir=root)
+
+
+def key_numbers(results) -> dict:
+    """Per point: Car AP|R40 (3D, BEV strict; 3D loose) and centre-matched error medians."""
+    out = {}
+    for pt, ev in results:
+        car, loose = ev["ap"]["Car"], ev["ap_loose"]["Car"]
+        err = ev["errors"]["centre"]["Car"]["all"]
+        bins = {f"{b['range'][0]:g}": b["ap"]["Car"].get("3d", {}).get("R40", [None] * 3)[1]
+                for b in ev["range_bins"]["bins"]}
+        out[pt.key.split("/", 1)[1]] = {
+            "3d_r40": car["3d"]["R40"], "bev_r40": car["bev"]["R40"], "3d_loose_r40": loose["3d"]["R40"],
+            "3d_r40_moderate_by_range": bins, "matched": err["n"],
+            "centre_median": err["centre"]["median"], "depth_median": err["depth"]["median"],
+            "yaw_deg_median": err["yaw_deg"]["median"]}
+    return out
+
+
+def compute(root: Path | None = None) -> dict:
+    with tempfile.TemporaryDirectory() as tmp:
+        spec = golden_sweep(Path(root or tmp))
+        return key_numbers(execute(plan(spec), LocalBackend(1)))
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--update", action="store_true", help=f"rewrite {EXPECTED}")
+    args = ap.parse_args()
+    numbers = compute()
+    text = json.dumps(numbers, indent=1, sort_keys=True) + "\n"
+    if args.update:
+        EXPECTED.write_text(text)
+        print(f"wrote {EXPECTED}")
+    else:
+        print(text)
+
+
+if __name__ == "__main__":
+    main()
