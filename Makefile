@@ -6,6 +6,7 @@ PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
+TEST_STAMP := $(VENV)/.installed-test
 export PYOPENGL_PLATFORM := egl
 export PIP_DISABLE_PIP_VERSION_CHECK := 1
 
@@ -17,18 +18,23 @@ $(BIN)/python:
 # torch==2.13.0 must come from the local CPU wheel (PIP_FIND_LINKS), never the CUDA build.
 $(STAMP): pyproject.toml | $(BIN)/python
 	$(BIN)/pip install --quiet --find-links /opt/wheels torch==2.13.0
-	$(BIN)/pip install --quiet --find-links /opt/wheels -e ".[test,ray]"
+	$(BIN)/pip install --quiet --find-links /opt/wheels -e .
 	touch $(STAMP)
 
-install: $(STAMP)
+# The tests also need the test tools and Ray (CI runs a sweep on the Ray backend).
+$(TEST_STAMP): $(STAMP)
+	$(BIN)/pip install --quiet --find-links /opt/wheels -e ".[test,ray]"
+	touch $(TEST_STAMP)
+
+install: $(TEST_STAMP)
 
 demo: $(STAMP)
 	$(BIN)/testbed run scenes/quickstart.yaml
 
-test: $(STAMP)
+test: $(TEST_STAMP)
 	$(BIN)/python -m pytest -q -n 2
 
-bench: $(STAMP)
+bench: $(TEST_STAMP)
 	@for b in benchmarks/bench_*.py; do echo "== $$b"; $(BIN)/python $$b || exit 1; done
 
 clean:

@@ -11,11 +11,14 @@ to measure that case); the second call is the steady state. Then once more with 
 from __future__ import annotations
 
 import argparse
+import subprocess
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
-from kitti.labels import Object3D
+from kitti.labels import Object3D, write_label
 
 TYPES = np.array(["Car", "Car", "Car", "Car", "Van", "Pedestrian", "Pedestrian", "Person_sitting",
                   "Cyclist", "DontCare"])
@@ -50,12 +53,12 @@ def frame(rng: np.random.Generator, n_gt: int, n_dt: int) -> tuple[list[Object3D
     dt = []
     for o in real[:n_dt]:
         if rng.random() < 0.85:
-            loc = o.location + rng.normal(0, [0.2, 0.05, 0.4])
-            h, w, l = o.h * rng.uniform(0.9, 1.1), o.w * rng.uniform(0.9, 1.1), o.l * rng.uniform(0.9, 1.1)
-            ry = o.rotation_y + rng.normal(0, 0.2)
+            loc = o.location + rng.normal(0, [0.1, 0.03, 0.2])
+            h, w, l = (v * rng.uniform(0.95, 1.05) for v in (o.h, o.w, o.l))
+            ry = o.rotation_y + rng.normal(0, 0.1)
             t = "Car" if o.type == "Van" and rng.random() < 0.5 else o.type
             dt.append(Object3D(t, 0.0, 0, float(ry - np.arctan2(loc[0], loc[2])),
-                               o.bbox + rng.normal(0, 3, 4), h, w, l, loc, ry, float(rng.uniform(0.3, 1))))
+                               o.bbox + rng.normal(0, 1.5, 4), h, w, l, loc, ry, float(rng.uniform(0.3, 1))))
     while len(dt) < n_dt:
         t = str(rng.choice(["Car", "Pedestrian", "Cyclist"]))
         z, x = rng.uniform(4, 70), rng.uniform(-15, 15)
@@ -78,6 +81,8 @@ def dataset(seed: int = 0, frames: int = 3769) -> tuple[dict, dict]:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--frames", type=int, default=3769)
+    ap.add_argument("--files", action="store_true",
+                    help="also write the set to data/bench_eval/ and time `testbed evaluate` on it")
     args = ap.parse_args()
     gt, dt = dataset(0, args.frames)
     n_gt = sum(len(v) for v in gt.values())
@@ -96,6 +101,18 @@ def main() -> None:
     t = time.perf_counter()
     evaluate(gt, dt, range_bins=[0, 20, 40, 60, 80])
     print(f"with --range-bins 0,20,40,60,80: {time.perf_counter() - t:6.2f} s")
+    if args.files:
+        root = Path("data/bench_eval")
+        for sub, frames in (("label_2", gt), ("results", dt)):
+            for fid, objs in frames.items():
+                write_label(root / sub / f"{fid}.txt", objs)
+        t = time.perf_counter()
+        testbed = str(Path(sys.executable).parent / "testbed")
+        subprocess.run([testbed, "evaluate", "--gt", str(root / "label_2"), "--pred", str(root / "results"),
+                        "--json", str(root / "eval.json")],
+                       check=True, stdout=subprocess.DEVNULL)
+        print(f"`testbed evaluate` on the files (new process, reading 2 x {args.frames} files): "
+              f"{time.perf_counter() - t:6.2f} s")
     print()
     print(res.table())
 

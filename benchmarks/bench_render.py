@@ -31,14 +31,14 @@ from simgen.spec import load_spec
 def render_breakdown(spec, n: int) -> None:
     worlds = [sample_world(spec, spec.seed, i) for i in range(n)]
     r = renderer(worlds[0].rig.width, worlds[0].rig.height)
-    build_scene(worlds[0])  # warm-up: shader compilation happens on the first render
-    r.render(build_scene(worlds[0])[0])
+    scene, _, flags = build_scene(worlds[0])  # warm-up: shaders compile on the first render
+    r.render(scene, flags=flags)
     t = {"build": [], "colour": [], "seg+depth": [], "look": [], "labels": []}
     for w in worlds:
         t0 = time.perf_counter()
-        scene, seg = build_scene(w)
+        scene, seg, flags = build_scene(w)
         t1 = time.perf_counter()
-        color, _ = r.render(scene)
+        color, _ = r.render(scene, flags=flags)
         t2 = time.perf_counter()
         ids, depth = r.render(scene, flags=RenderFlags.SEG, seg_node_map=seg)
         t3 = time.perf_counter()

@@ -49,10 +49,10 @@ class TrainConfig:
     box_loss: str = "diou"
     augment: AugmentConfig = field(default_factory=AugmentConfig)
     close_mosaic: int = 3        # last epochs trained on plain letterboxed images (+ flips, colour)
-    train_split: str | None = "train"
-    val_split: str | None = "val"
-    val_data: str | None = None  # default: the training root
-    eval_every: int = 1
+    train_split: str | None = "train"  # ImageSets name; None: every frame of the root
+    val_split: str | None = "val"      # likewise, for the per-epoch evaluation
+    val_data: str | None = None        # evaluation root (default: the training root)
+    eval_every: int = 1                # epochs between evaluations; 0: never
     ema_decay: float = 0.999
     seed: int = 0
     threads: int = 2
@@ -223,7 +223,7 @@ def train(cfg: TrainConfig, resume: bool = False) -> dict:
         avg = (sums / nb).tolist()
         row = {"epoch": epoch + 1, "lr": opt.param_groups[0]["lr"], "loss": avg[0], "box": avg[1],
                "obj": avg[2], "cls": avg[3], "seconds": time.time() - t0}
-        if cfg.val_split is not None and ((epoch + 1) % cfg.eval_every == 0 or epoch + 1 == cfg.epochs):
+        if cfg.eval_every and ((epoch + 1) % cfg.eval_every == 0 or epoch + 1 == cfg.epochs):
             res = evaluate_model(ema.ema, img_size, cfg.val_data or cfg.data, cfg.val_split)
             for c in CLASSES:
                 for d, v in zip(("easy", "moderate", "hard"), res.ap[c]["2d"]["R40"]):

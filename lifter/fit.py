@@ -26,7 +26,7 @@ from kitti.boxes import box_corners, wrap_angle
 from kitti.calib import Calibration
 
 from .mono import solve_from_alpha
-from .points import FramePoints
+from .points import FramePoints, rowdot
 from .types import Box2D, Lifted, Prior
 
 ROAD_CUT = 0.15        # m above the fitted plane: lower returns are road
@@ -121,7 +121,7 @@ def _faces(pxz: np.ndarray, puv: np.ndarray, e: np.ndarray, size: float, sensor_
     there (a far roof or bonnet return is no face). `scene` = (u, range) of every above-road
     return in the 2D box, for the occluder test.
     """
-    p = pxz @ e
+    p = rowdot(pxz, e)
     lo, hi = np.percentile(p, [2.0, 98.0])
     near_lo = sensor_xz @ e < 0.5 * (lo + hi)
     tol = max(FACE_TOL_PX, FACE_TOL_FRAC * (box.bbox[2] - box.bbox[0]))
@@ -221,8 +221,9 @@ def lift_fit(boxes: list[Box2D], priors: list[Prior], pts: FramePoints, calib: C
     road_d = np.array([_ground_depth(b, calib, plane, cam) for b in boxes])
     for i in np.argsort(road_d, kind="stable"):
         box, prior = boxes[i], priors[i]
-        cand = pts.in_box(box.bbox)
-        cand = cand[free[cand]]
+        inbox = pts.in_box(box.bbox)
+        inbox = inbox[keep[inbox]]
+        cand = inbox[free[inbox]]
         if len(cand) < MIN_POINTS:
             out[i] = _fallback(box, prior, calib, image_size, plane, cam)
             continue
@@ -260,8 +261,8 @@ def lift_fit(boxes: list[Box2D], priors: list[Prior], pts: FramePoints, calib: C
         ry = ry_prior if small or len(obj) < MIN_LSHAPE else fit_yaw(oxz, ry_prior)
         ea = np.array([np.cos(ry), -np.sin(ry)])
         eb = np.array([np.sin(ry), np.cos(ry)])
-        ext_a = np.subtract(*np.percentile(oxz @ ea, [98.0, 2.0]))
-        ext_b = np.subtract(*np.percentile(oxz @ eb, [98.0, 2.0]))
+        ext_a = np.subtract(*np.percentile(rowdot(oxz, ea), [98.0, 2.0]))
+        ext_b = np.subtract(*np.percentile(rowdot(oxz, eb), [98.0, 2.0]))
         if not small:
             l, w = max(l, ext_a), max(w, ext_b)
         h = max(h, float(pts.height[obj].max()))  # roof returns lie a little below the top
@@ -269,8 +270,6 @@ def lift_fit(boxes: list[Box2D], priors: list[Prior], pts: FramePoints, calib: C
         start_xz = centroid
         start_y = -(plane[0] * start_xz[0] + plane[2] * start_xz[1] + plane[3]) / plane[1]
         start = np.array([start_xz[0], start_y, start_xz[1]])
-        inbox = pts.in_box(box.bbox)
-        inbox = inbox[keep[inbox]]
         scene = (pts.uv[inbox, 0], np.linalg.norm(pts.rect[inbox][:, [0, 2]] - pts.sensor[[0, 2]], axis=1))
         T = _translation(oxz, pts.uv[obj], dims, ry, box, pts.sensor, start, calib, image_size,
                          plane, cam, scene)

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .points import rowdot
+
 # RANSAC settings (no document gives them; chosen for a 1.65-1.73 m high sensor on a road):
 INLIER_M = 0.05       # a return within 5 cm of the plane is road (a 15 cm curb is not)
 ITERATIONS = 60       # P(no all-road sample) < 1e-6 when half the candidates are road
@@ -25,7 +27,7 @@ def normalise_plane(plane: np.ndarray) -> np.ndarray:
 
 
 def height_above(points_rect: np.ndarray, plane: np.ndarray) -> np.ndarray:
-    return points_rect @ plane[:3] + plane[3]
+    return rowdot(points_rect, plane[:3]) + plane[3]
 
 
 def fit_ground_plane(points_rect: np.ndarray, seed: int = 0,
@@ -49,7 +51,7 @@ def fit_ground_plane(points_rect: np.ndarray, seed: int = 0,
         return flat
     n = n[ok] / norm[ok, None]
     d = -np.einsum("ij,ij->i", n, a[ok])
-    counts = (np.abs(pts @ n.T + d) < INLIER_M).sum(axis=0)
+    counts = (np.abs(np.einsum("ij,kj->ik", pts, n) + d) < INLIER_M).sum(axis=0)
     best = normalise_plane(np.append(n[np.argmax(counts)], d[np.argmax(counts)]))
     # refine by least squares, re-selecting the inliers: a sample from the dense near returns is
     # slightly off in pitch, and only the refit brings the far road back inside the threshold
@@ -58,7 +60,8 @@ def fit_ground_plane(points_rect: np.ndarray, seed: int = 0,
         if len(inliers) < 10:
             break
         centre = inliers.mean(axis=0)
-        _, _, vt = np.linalg.svd(inliers - centre, full_matrices=False)
-        n = vt[-1]
+        q = inliers - centre
+        _, vecs = np.linalg.eigh(np.einsum("ni,nj->ij", q, q))
+        n = vecs[:, 0]  # smallest scatter: the normal
         best = normalise_plane(np.append(n, -np.dot(n, centre)))
     return best

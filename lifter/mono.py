@@ -43,7 +43,7 @@ def _grid(choices: list[np.ndarray]) -> np.ndarray:
 
 
 def _project(pts: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    hom = pts @ P[:, :3].T + P[:, 3]
+    hom = np.einsum("...j,ij->...i", pts, P[:, :3]) + P[:, 3]
     return hom[..., :2] / hom[..., 2:3], hom[..., 2]
 
 
@@ -80,7 +80,7 @@ def solve_translation(dims: np.ndarray, rotation_y: float, bbox: np.ndarray, cal
     A = np.array(rows)  # (k, 3)
     combos = _grid(choices)  # (K, k)
     B = np.stack([rhs_sets[i][combos[:, i]] for i in range(len(rows))], axis=0)  # (k, K)
-    T = (np.linalg.pinv(A) @ B).T  # (K, 3)
+    T = np.einsum("ij,jk->ki", np.linalg.pinv(A), B)  # (K, 3); einsum: no BLAS threads
     corners = T[:, None, :] + offs[None]  # (K, 8, 3)
     uv, z = _project(corners, P)
     lo, hi = uv.min(axis=1), uv.max(axis=1)

@@ -100,4 +100,5 @@ def loss_fn(out, dims_t, bin_t, cs_t, cover_t) -> tuple[torch.Tensor, dict[str, 
     l_orient = orientation_loss(cs, cs_t, cover_t)
     l_conf = F.cross_entropy(conf, bin_t)
     total = l_size + W_ORIENT * l_orient + W_CONF * l_conf
-    return total, {"size": float(l_size), "orient": float(l_orient), "conf": float(l_conf)}
+    parts = {"size": l_size.item(), "orient": l_orient.item(), "conf": l_conf.item()}
+    return total, parts

@@ -84,7 +84,7 @@ def lift_frame(method: str, boxes: list[Box2D], priors: list[Prior], calib: Cali
         if plane_file is None and velodyne is None:
             raise ValueError("method 'roadside' needs the road plane (planes/) or velodyne/")
         if plane_file is None:
-            road = fit_ground_plane(calib.lidar_to_rect(velodyne[:, :3].astype(float)))
+            road = fit_ground_plane(frame_points(velodyne, calib, None).rect)
         lifted = lift_roadside(boxes, priors, calib, image_size, road)
     elif method == "frustum":
         pts = frame_points(velodyne, calib, None)
@@ -92,9 +92,9 @@ def lift_frame(method: str, boxes: list[Box2D], priors: list[Prior], calib: Cali
         lifted = [f if f is not None else _mono(b, p, calib, image_size, road)
                   for f, b, p in zip(found, boxes, priors)]
     else:  # fit: the road plane from this frame's own returns
-        rect = calib.lidar_to_rect(velodyne[:, :3].astype(float))
-        road = fit_ground_plane(rect)
-        pts = frame_points(velodyne, calib, road)
+        pts = frame_points(velodyne, calib, None)
+        road = fit_ground_plane(pts.rect)
+        pts = pts.with_plane(road)
         lifted = lift_fit(boxes, priors, pts, calib, image_size, road)
     out = []
     for b, lf in zip(boxes, lifted):

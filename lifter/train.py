@@ -124,13 +124,11 @@ def train(data: str | Path, out: str | Path, epochs: int = 30, crop_size: int = 
     root = Path(data)
     if train_split and (root / "ImageSets" / f"{train_split}.txt").exists():
         tr_ids = ds.ids(train_split)
-        va_ids = ds.ids(val_split) if (root / "ImageSets" / f"{val_split}.txt").exists() else []
+        va_ids = ds.ids(val_split) if val_split and (root / "ImageSets" / f"{val_split}.txt").exists() else []
     else:
-        all_ids = ds.ids()
-        va_ids, tr_ids = all_ids[::10], [f for i, f in enumerate(all_ids) if i % 10]
-    if not va_ids:
-        all_ids = tr_ids
-        va_ids, tr_ids = all_ids[::10], [f for i, f in enumerate(all_ids) if i % 10]
+        tr_ids, va_ids = ds.ids(), []
+    if not va_ids:  # hold out every 10th training frame to pick the best epoch
+        va_ids, tr_ids = tr_ids[::10], [f for i, f in enumerate(tr_ids) if i % 10]
     tr = collect(ds, tr_ids, crop_size, "train")
     va = collect(ds, va_ids, crop_size, "val")
     cfg = NetConfig(width=width, crop=crop_size, class_means=class_means(tr))
@@ -150,17 +148,20 @@ def train(data: str | Path, out: str | Path, epochs: int = 30, crop_size: int = 
         net.train()
         perm = rng.permutation(len(tr.cls))
         bar = tqdm(range(0, len(perm), batch_size), desc=f"epoch {epoch + 1}/{epochs}", leave=False)
+        stepped = False
         for start in bar:
             idx = perm[start:start + batch_size]
-            if len(idx) < 2:
+            if len(idx) < 2:  # batch norm needs two samples
                 continue
             x, cls, dims_t, bin_t, cs_t, cover_t = batch(tr, idx, crop_size, rng)
             loss, parts = loss_fn(net(x, cls), dims_t, bin_t, cs_t, cover_t)
             opt.zero_grad()
             loss.backward()
             opt.step()
-            bar.set_postfix(loss=f"{float(loss):.3f}", **{k: f"{v:.3f}" for k, v in parts.items()})
-        sched.step()
+            stepped = True
+            bar.set_postfix(loss=f"{loss.item():.3f}", **{k: f"{v:.3f}" for k, v in parts.items()})
+        if stepped:
+            sched.step()
         metrics = {"epoch": epoch + 1, **evaluate(net, va, crop_size)}
         log.append(metrics)
         tqdm.write(json.dumps(metrics))

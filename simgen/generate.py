@@ -12,6 +12,7 @@ where it stopped and never leaves a half-written frame.
 from __future__ import annotations
 
 import json
+import os
 import zlib
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
@@ -105,7 +106,9 @@ def make_frame(job: Job) -> str:
     if job.lidar is not None:
         lidar = _lidar_api()
         lspec = lidar.preset(job.lidar.preset, beams=job.lidar.beams, max_range=job.lidar.max_range)
-        scan = lidar.scan(world, lspec, zlib.crc32(f"lidar:{job.seed}:{job.index}".encode()))
+        from .lidar.dataset import lidar_seed  # the seed `testbed rescan` uses too
+
+        scan = lidar.scan(world, lspec, lidar_seed(job.seed, job.index))
         lidar.write_scan(training, fid, scan)
         counts = scan.point_counts()
         lidar_info = job.lidar.model_dump()
@@ -118,6 +121,11 @@ def make_frame(job: Job) -> str:
     meta = meta_io.world_to_meta(world, spec_to_dict(job.spec), truths, counts, lidar_info)
     atomic_write_text(meta_path, meta_io.dumps(meta))
     return fid
+
+
+def _init_worker(threads: int) -> None:
+    """Give each worker's software rasteriser its share of the cores (read at GL start-up)."""
+    os.environ.setdefault("LP_NUM_THREADS", str(threads))
 
 
 def split_ids(n: int, train_fraction: float, seed: int) -> tuple[list[str], list[str]]:
@@ -158,7 +166,9 @@ def generate(spec: SceneSpec, out: str | Path, frames: int | None = None, seed: 
             make_frame(j)
             bar.update()
     else:
-        with ProcessPoolExecutor(max_workers=workers, mp_context=get_context("spawn")) as pool:
+        threads = max(1, (os.cpu_count() or 1) // workers)
+        with ProcessPoolExecutor(max_workers=workers, mp_context=get_context("spawn"),
+                                 initializer=_init_worker, initargs=(threads,)) as pool:
             for _ in pool.map(make_frame, jobs):
                 bar.update()
     bar.close()

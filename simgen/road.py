@@ -4,7 +4,8 @@ Positions on the road are (s, d): s the arc length along the ego-lane centre lin
 at s = 0), d the lateral offset to the left of it. Offset curves of a circle are concentric
 circles, so every lane, curb and sidewalk edge is exact. Right-hand traffic: the ego direction's
 lanes lie right of the divider, the oncoming lanes left of it; a parking strip lines each curb
-when the spec parks cars.
+when the spec parks cars. An intersection is a straight road crossed at s = cross_s by a
+perpendicular street (world x = cross_s) with lanes of the same width.
 """
 
 from __future__ import annotations
@@ -27,6 +28,8 @@ class RoadLayout:
     parking: bool
     s_min: float
     s_max: float
+    cross_s: float | None = None  # s of a perpendicular cross street's centre line (straight roads)
+    cross_lanes: int = 0  # per direction on the cross street
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -51,6 +54,14 @@ class RoadLayout:
     @property
     def left_curb(self) -> float:
         return self.left_lane_edge + (PARKING_WIDTH if self.parking else 0.0)
+
+    @property
+    def cross_half_width(self) -> float:
+        return self.cross_lanes * self.lane_width
+
+    def in_cross_street(self, s: float, margin: float = 0.0) -> bool:
+        """Whether arc length s lies on the cross street (widened by margin each side)."""
+        return self.cross_s is not None and abs(s - self.cross_s) <= self.cross_half_width + margin
 
     def lane_centre(self, lane: int, oncoming: bool = False) -> float:
         """d of a lane centre; lane 0 is the one next to its own curb (or parking strip)."""

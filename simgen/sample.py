@@ -8,8 +8,6 @@ to reach them).
 
 from __future__ import annotations
 
-import zlib
-
 import numpy as np
 import shapely
 
@@ -23,6 +21,7 @@ from .usermesh import user_recipe
 from .world import Actor, Light, Weather, World
 
 MARGIN = 0.3  # metres of free space kept around every actor footprint
+VERGE_REACH = 60.0  # cross-street traffic runs from -60 to 60 m across the main road
 EGO_FOOTPRINT = shapely.box(-2.9, -1.0, 1.3, 1.0)  # KITTI's VW Passat around its LiDAR
 
 
@@ -92,7 +91,9 @@ def sample_world(spec: SceneSpec, seed: int, frame_index: int) -> World:
         ego_lane=min(int(v["road.ego_lane"]), lanes - 1),
         sidewalk_width=float(v["road.sidewalk_width"]), curb_height=float(v["road.curb_height"]),
         parking=float(v["traffic.parked_per_100m"]) > 0,
-        s_min=-spec.road.length_behind, s_max=max(spec.road.length_ahead, tr_max + 20.0))
+        s_min=-spec.road.length_behind, s_max=max(spec.road.length_ahead, tr_max + 20.0),
+        cross_s=float(v["road.intersection_distance"]) if v["road.type"] == "intersection" else None,
+        cross_lanes=int(v["road.cross_lanes_per_direction"]) if v["road.type"] == "intersection" else 0)
     scenery = {"road": road.to_dict(),
                "clutter": {k.split(".", 1)[1]: v[k] for k in v if k.startswith("clutter.")},
                "seed": int(factor_rng(seed, frame_index, "scenery").integers(2**31))}
@@ -145,6 +146,24 @@ def sample_world(spec: SceneSpec, seed: int, frame_index: int) -> World:
                     add(cls, recipe, road.pose(s, d, 0.0, yaw), vel,
                         (-1.0 if oncoming else 1.0) * vel * road.curvature)
                     s += recipe["dims"][2] + 2.0 + rng.exponential(100.0 / dens)
+    # Traffic on the cross street, both ways, right-hand; lane i of the +y direction at
+    # x = cross_s + (i + 0.5) w.
+    dens = float(v["traffic.vehicles_per_100m"])
+    if road.cross_s is not None and mix and dens > 0:
+        reach = VERGE_REACH
+        for sign in (1.0, -1.0):
+            for lane in range(road.cross_lanes):
+                x = road.cross_s + sign * (lane + 0.5) * road.lane_width
+                y = -reach + rng.exponential(100.0 / dens)
+                while y < reach:
+                    cls = _pick_class(mix, rng)
+                    recipe = _recipe(cls, spec, rng)
+                    yaw = sign * np.pi / 2 + rng.normal(0, sd_yaw)
+                    T = np.eye(4)
+                    T[:3, :3] = [[np.cos(yaw), -np.sin(yaw), 0], [np.sin(yaw), np.cos(yaw), 0], [0, 0, 1]]
+                    T[:3, 3] = [x + float(np.clip(rng.normal(0, sd_lat), -0.4, 0.4)), sign * y, 0.0]
+                    add(cls, recipe, T, speed * rng.uniform(0.8, 1.2))
+                    y += recipe["dims"][2] + 2.0 + rng.exponential(100.0 / dens)
     # Parked cars in the parking strips, nose along the traffic on their side.
     dens = float(v["traffic.parked_per_100m"])
     if dens > 0:
@@ -153,6 +172,9 @@ def sample_world(spec: SceneSpec, seed: int, frame_index: int) -> World:
             while s < s_hi:
                 cls = _pick_class({"Car": 0.85, "Van": 0.15}, rng)
                 recipe = _recipe(cls, spec, rng)
+                if road.in_cross_street(s, recipe["dims"][2] / 2 + 3.0):  # keep the corners free
+                    s += recipe["dims"][2] + 0.8 + rng.exponential(100.0 / dens)
+                    continue
                 w = recipe["dims"][1]
                 d = (road.right_curb + w / 2 + 0.25) if side < 0 else (road.left_curb - w / 2 - 0.25)
                 yaw = (0.0 if side < 0 else np.pi) + rng.normal(0, sd_yaw)
@@ -165,6 +187,8 @@ def sample_world(spec: SceneSpec, seed: int, frame_index: int) -> World:
         for s in rng.uniform(s_lo, s_hi, rng.poisson(dens * (s_hi - s_lo) / 100.0)):
             recipe = _recipe("Pedestrian", spec, rng)
             d = curb + side * rng.uniform(0.4, max(0.5, road.sidewalk_width - 0.4))
+            if road.in_cross_street(s, 0.5):  # the sidewalk stops at the cross street
+                continue
             yaw = rng.choice([0.0, np.pi]) + rng.normal(0, 0.4)
             add("Pedestrian", recipe, road.pose(s, d, road.curb_height, yaw), rng.uniform(0.8, 1.6))
     # Cyclists at the outer edge of the outermost lane of each direction.
@@ -202,7 +226,3 @@ def sample_world(spec: SceneSpec, seed: int, frame_index: int) -> World:
                  light=light, sensor=str(v["sensor"]), scenery=scenery, seed=int(seed),
                  frame_index=int(frame_index))
 
-
-def frame_seed(spec_seed: int, frame_index: int) -> int:
-    """Kept for callers that want one integer per frame (e.g. the LiDAR's noise)."""
-    return zlib.crc32(f"{spec_seed}:{frame_index}".encode())

@@ -68,6 +68,50 @@ def _footprint(m: trimesh.Trimesh) -> shapely.Polygon:
     return shapely.convex_hull(shapely.MultiPoint(m.vertices[:, :2]))
 
 
+def _rect(x0: float, x1: float, y0: float, y1: float, z: float) -> trimesh.Trimesh:
+    """An upward-facing horizontal rectangle in world coordinates."""
+    v = np.array([[x0, y0, z], [x1, y0, z], [x1, y1, z], [x0, y1, z]], float)
+    return trimesh.Trimesh(v, [[0, 1, 2], [0, 2, 3]], process=False)
+
+
+def _wall(x: float, y0: float, y1: float, z0: float, z1: float, facing: float) -> trimesh.Trimesh:
+    """A vertical rectangle in the plane world x = const, facing +x (facing > 0) or -x."""
+    v = np.array([[x, y0, z0], [x, y1, z0], [x, y1, z1], [x, y0, z1]], float)
+    faces = [[0, 1, 2], [0, 2, 3]] if facing > 0 else [[0, 2, 1], [0, 3, 2]]
+    return trimesh.Trimesh(v, faces, process=False)
+
+
+def _spans(road: RoadLayout, margin: float) -> list[tuple[float, float]]:
+    """[s_min, s_max] minus the cross street widened by `margin` on both sides."""
+    if road.cross_s is None:
+        return [(road.s_min, road.s_max)]
+    a, b = road.cross_s - road.cross_half_width - margin, road.cross_s + road.cross_half_width + margin
+    return [(lo, hi) for lo, hi in ((road.s_min, a), (b, road.s_max)) if hi > lo]
+
+
+def _cross_street(road: RoadLayout, add) -> shapely.Polygon:
+    """Asphalt, curbs, sidewalks and markings of the cross street; returns the band to keep free
+    of buildings, trees and poles."""
+    cx, hw, sw, ch = road.cross_s, road.cross_half_width, road.sidewalk_width, road.curb_height
+    far = VERGE_WIDTH + sw
+    for y0, y1, walk in ((road.right_curb - far, road.right_curb, road.right_curb - sw),
+                         (road.left_curb, road.left_curb + far, road.left_curb + sw)):
+        add(ASPHALT, _rect(cx - hw, cx + hw, y0, y1, 0.0))
+        w0, w1 = (y0, walk) if y1 == road.right_curb else (walk, y1)
+        add(SIDEWALK, _rect(cx - hw - sw, cx - hw, w0, w1, ch))
+        add(SIDEWALK, _rect(cx + hw, cx + hw + sw, w0, w1, ch))
+        add(CONCRETE, _wall(cx - hw, y0, y1, 0.0, ch, +1))
+        add(CONCRETE, _wall(cx + hw, y0, y1, 0.0, ch, -1))
+        for off in (-0.12, 0.12):
+            add(MARKING, _rect(cx + off - 0.075, cx + off + 0.075, y0, y1, MARK_Z))
+    # Stop lines before the crossing, across the lanes of each direction.
+    add(MARKING, _strip(road, np.array([cx - hw - 1.4, cx - hw - 1.0]), road.right_lane_edge,
+                        road.divider, MARK_Z))
+    add(MARKING, _strip(road, np.array([cx + hw + 1.0, cx + hw + 1.4]), road.divider,
+                        road.left_lane_edge, MARK_Z))
+    return shapely.box(cx - hw - sw - 1.0, -1e4, cx + hw + sw + 1.0, 1e4)
+
+
 def build_scenery(params: dict) -> tuple[list[Part], list[Obstacle]]:
     """Static parts (world frame) and their footprints, from the scenery parameters.
 
@@ -80,40 +124,50 @@ def build_scenery(params: dict) -> tuple[list[Part], list[Obstacle]]:
     s = road.samples(road.s_min, road.s_max)
     by_mat: dict[Material, list[trimesh.Trimesh]] = {}
     obstacles: list[Obstacle] = []
-    clear = shapely.Polygon(params["keep_clear"]) if params.get("keep_clear") else None
+    clear = [shapely.Polygon(params["keep_clear"])] if params.get("keep_clear") else []
 
     def add(mat, mesh):
         by_mat.setdefault(mat, []).append(mesh)
 
     def blocks(mesh) -> bool:
-        return clear is not None and _footprint(mesh).intersects(clear)
+        fp = _footprint(mesh)
+        return any(fp.intersects(c) for c in clear)
 
     add(ASPHALT, _strip(road, s, road.right_curb, road.left_curb, 0.0))
+    if road.cross_s is not None:
+        clear.append(_cross_street(road, add))
     ch, sw = road.curb_height, road.sidewalk_width
     for side in (-1, 1):
         curb = road.right_curb if side < 0 else road.left_curb
         outer = curb + side * sw
         lo, hi = sorted((curb, outer))
-        add(SIDEWALK, _strip(road, s, lo, hi, ch))
-        face = _strip(road, s, curb, curb, 0.0, ch)
-        add(CONCRETE, face if side < 0 else _flip(face))
+        for s0, s1 in _spans(road, 0.0):
+            ss = road.samples(s0, s1)
+            add(SIDEWALK, _strip(road, ss, lo, hi, ch))
+            face = _strip(road, ss, curb, curb, 0.0, ch)
+            add(CONCRETE, face if side < 0 else _flip(face))
         vlo, vhi = sorted((outer, outer + side * VERGE_WIDTH))
-        add(VERGE, _strip(road, s, vlo, vhi, ch))
+        for s0, s1 in _spans(road, sw):
+            add(VERGE, _strip(road, road.samples(s0, s1), vlo, vhi, ch))
     # Markings: solid edge lines and divider, dashed lines between lanes of one direction.
     w = 0.15
-    for d in (road.right_lane_edge + 0.25, road.left_lane_edge - 0.25):
-        add(MARKING, _strip(road, s, d - w / 2, d + w / 2, MARK_Z))
-    for off in (-0.12, 0.12):
-        add(MARKING, _strip(road, s, road.divider + off - w / 2, road.divider + off + w / 2, MARK_Z))
+    spans = _spans(road, 0.0)
+    for s0, s1 in spans:
+        ss = road.samples(s0, s1)
+        for d in (road.right_lane_edge + 0.25, road.left_lane_edge - 0.25):
+            add(MARKING, _strip(road, ss, d - w / 2, d + w / 2, MARK_Z))
+        for off in (-0.12, 0.12):
+            add(MARKING, _strip(road, ss, road.divider + off - w / 2, road.divider + off + w / 2, MARK_Z))
     dash, gap = 3.0, 9.0
     starts = np.arange(np.floor(road.s_min / (dash + gap)) * (dash + gap), road.s_max, dash + gap)
     for k in range(1, road.lanes):
         for base in (road.right_lane_edge, road.left_lane_edge):
             d = base + k * road.lane_width if base == road.right_lane_edge else base - k * road.lane_width
             for s0 in starts:
-                ss = road.samples(max(s0, road.s_min), min(s0 + dash, road.s_max), 1.0)
-                if ss[-1] > ss[0]:
-                    add(MARKING, _strip(road, ss, d - w / 2, d + w / 2, MARK_Z))
+                for lo_s, hi_s in spans:
+                    ss = road.samples(max(s0, lo_s), min(s0 + dash, hi_s), 1.0)
+                    if ss[-1] > ss[0]:
+                        add(MARKING, _strip(road, ss, d - w / 2, d + w / 2, MARK_Z))
     # Buildings, trees, poles and fences along both sides.
     for side in (-1, 1):
         curb = road.right_curb if side < 0 else road.left_curb
@@ -131,8 +185,9 @@ def build_scenery(params: dict) -> tuple[list[Part], list[Obstacle]]:
                 add(Material("facade", _FACADES[int(rng.integers(len(_FACADES)))], 0.35), m)
                 obstacles.append(Obstacle(_footprint(m)))
         elif clutter["fences"]:  # where no buildings line the sidewalk
-            m = _strip(road, s, outer - side * 0.3, outer - side * 0.3, ch, ch + 1.2)
-            add(FENCE, m if side < 0 else _flip(m))
+            for s0, s1 in _spans(road, sw):
+                m = _strip(road, road.samples(s0, s1), outer - side * 0.3, outer - side * 0.3, ch, ch + 1.2)
+                add(FENCE, m if side < 0 else _flip(m))
         n_trees = rng.poisson(clutter["trees_per_100m"] * (road.s_max - road.s_min) / 100.0)
         for st in np.sort(rng.uniform(road.s_min, road.s_max, n_trees)):
             d = outer - side * min(1.0, sw / 2)

@@ -33,10 +33,12 @@ class SplitSpec(Strict):
 class RoadSpec(Strict):
     """A road along +x through the ego position; lanes of both directions, curbs and sidewalks."""
 
-    type: factor(str, options=("straight", "curved")) = "straight"
+    type: factor(str, options=("straight", "curved", "intersection")) = "straight"
     lanes_per_direction: factor(int, 1, 4) = 2
     lane_width: factor(float, 2.5, 4.5) = 3.5
     curvature: factor(float, -0.01, 0.01) = 0.0  # 1/m, left positive; used when type is curved
+    intersection_distance: factor(float, 10.0, 150.0) = 35.0  # m ahead; type intersection
+    cross_lanes_per_direction: factor(int, 1, 3) = 1  # on the cross street
     ego_lane: factor(int, 0, 3) = 0  # counted from the right curb, clipped to the lanes present
     sidewalk_width: factor(float, 1.0, 8.0) = 3.0
     curb_height: factor(float, 0.0, 0.3) = 0.15

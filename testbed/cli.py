@@ -5,6 +5,8 @@ from __future__ import annotations
 import click
 
 from .cmd_evaluate import evaluate
+from .cmd_detect import detect
+from .cmd_train_detector import train_detector
 from .cmd_generate import generate
 from .cmd_lift import lift
 from .cmd_train_lifter import train_lifter
@@ -22,6 +24,8 @@ def cli() -> None:
 
 
 cli.add_command(evaluate)
+cli.add_command(detect)
+cli.add_command(train_detector)
 cli.add_command(generate)
 cli.add_command(lift)
 cli.add_command(train_lifter)

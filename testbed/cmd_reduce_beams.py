@@ -24,8 +24,8 @@ def reduce_beams(dataset: Path, beams: int, out: Path, source_beams: int | None,
                  workers: int) -> None:
     """Keep rings 0, k, 2k, ... of every scan: rings from velodyne_info/ where present, else
     recovered from the KITTI point order (azimuth wraps) or elevation clustering."""
-    from simgen.lidar.dataset import (PARTS, ReduceJob, claim_output, mirror_dataset,
-                                      reduce_frame, reduce_ids)
+    from simgen.lidar.dataset import (PARTS, ReduceJob, check_reduction, claim_output,
+                                      mirror_dataset, reduce_frame, reduce_ids)
     from testbed.backends import LocalBackend
 
     try:
@@ -33,6 +33,7 @@ def reduce_beams(dataset: Path, beams: int, out: Path, source_beams: int | None,
                 for part in PARTS for fid in reduce_ids(dataset, part)]
         if not jobs:
             raise ValueError(f"{dataset}: no training/velodyne/*.bin (or testing/) to reduce")
+        check_reduction(dataset, jobs[0])
         claim_output(dataset, out, {"command": "reduce-beams", "beams": beams,
                                     "source_beams": source_beams})
         mirror_dataset(dataset, out)

@@ -61,10 +61,43 @@ def make_frame(boxes7, types=None, beams: int = 64, **kw) -> SynthFrame:
     pts, ids = scan(boxes7, calib, beams, **kw)
     lidar = calib.rect_to_lidar(pts)
     velo = np.concatenate([lidar, np.full((len(lidar), 1), 0.5)], axis=1).astype(np.float32)
-    bb = project_boxes(boxes7, calib, IMAGE_SIZE)
+    bb = project_boxes(boxes7, calib, IMAGE_SIZE) if len(boxes7) else np.zeros((0, 4))
     objs = []
     for i, b in enumerate(boxes7):
         objs.append(Object3D((types or ["Car"] * len(boxes7))[i], 0.0, 0,
                              float(alpha_from_rotation_y(b[6], b[0], b[2])), bb[i],
                              b[3], b[4], b[5], b[:3], float(b[6])))
     return SynthFrame(calib, velo, ids, objs)
+
+
+def write_dataset(root, frames: list[SynthFrame], split: str = "val", seed: int = 0) -> list[str]:
+    """A KITTI-layout dataset of the frames: flat grey images with each car drawn as a shaded
+    rectangle (so crops differ), calib, velodyne, label_2, planes, ImageSets/<split>.txt."""
+    import os
+
+    import imageio.v3 as iio
+
+    from kitti.calib import write_calib
+    from kitti.labels import write_label
+    from kitti.planes import write_plane
+    from kitti.splits import write_split
+    from kitti.velodyne import write_velodyne
+
+    rng = np.random.default_rng(seed)
+    tr = f"{root}/training"
+    ids = [f"{i:06d}" for i in range(len(frames))]
+    for fid, fr in zip(ids, frames):
+        img = np.full((IMAGE_SIZE[1], IMAGE_SIZE[0], 3), 110, dtype=np.uint8)
+        for o in sorted(fr.objects, key=lambda o: -o.location[2]):
+            x1, y1, x2, y2 = np.round(o.bbox).astype(int)
+            shade = int(60 + 150 * (np.cos(o.alpha) + 1) / 2)
+            img[y1:y2 + 1, x1:x2 + 1] = (shade, int(rng.integers(0, 255)), 255 - shade)
+        for sub in ("image_2", "calib", "velodyne", "label_2", "planes"):
+            os.makedirs(f"{tr}/{sub}", exist_ok=True)
+        iio.imwrite(f"{tr}/image_2/{fid}.png", img)
+        write_calib(f"{tr}/calib/{fid}.txt", fr.calib)
+        write_velodyne(f"{tr}/velodyne/{fid}.bin", fr.velodyne)
+        write_label(f"{tr}/label_2/{fid}.txt", fr.objects)
+        write_plane(f"{tr}/planes/{fid}.txt", PLANE)
+    write_split(f"{root}/ImageSets/{split}.txt", ids)
+    return ids

@@ -21,9 +21,11 @@ def _write(tmp_path, n_frames=50):
     gt_dir, dt_dir = tmp_path / "label_2", tmp_path / "results"
     for f in range(n_frames):
         fid = f"{f:06d}"
-        write_label(gt_dir / f"{fid}.txt", [_car(0), _car(1, t="Pedestrian"), Object3D.dont_care([500, 0, 600, 50])])
+        write_label(gt_dir / f"{fid}.txt",
+                    [_car(0), _car(1, t="Pedestrian"), Object3D.dont_care([500, 0, 600, 50])])
         if f % 10 != 9:  # every 10th result file missing: no detections there
-            write_label(dt_dir / f"{fid}.txt", [_car(0, score=1 - f / 100), _car(1, score=0.5, t="Pedestrian")])
+            write_label(dt_dir / f"{fid}.txt",
+                        [_car(0, score=1 - f / 100), _car(1, score=0.5, t="Pedestrian")])
     return gt_dir, dt_dir
 
 

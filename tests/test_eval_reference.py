@@ -102,7 +102,8 @@ def compute_statistics(gt, det, dc, ignored_gt, ignored_det, compute_fp, ov, min
             elif (compute_fp and overlap > min_overlap and (overlap > max_overlap or assigned_ignored_det)
                   and ignored_det[j] == 0):
                 max_overlap, det_idx, valid_detection, assigned_ignored_det = overlap, j, 1, False
-            elif compute_fp and overlap > min_overlap and valid_detection == NO_DETECTION and ignored_det[j] == 1:
+            elif (compute_fp and overlap > min_overlap and valid_detection == NO_DETECTION
+                  and ignored_det[j] == 1):
                 det_idx, valid_detection, assigned_ignored_det = j, 1, True
         if valid_detection == NO_DETECTION and ignored_gt[i] == 0:
             fn += 1

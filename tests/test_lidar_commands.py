@@ -71,6 +71,7 @@ def test_rescan_other_sensor_changes_only_the_lidar(source, tmp_path):
 
 def test_reduce_beams_keeps_every_other_ring_with_or_without_side_files(source, tmp_path):
     out = tmp_path / "r32"
+    (source / ".done").write_text("{}")  # a pipeline stage's marker must not be inherited
     _run("reduce-beams", "--data", source, "--beams", 32, "--out", out, "--workers", 1)
     pts = read_velodyne(source / "training/velodyne/000000.bin")
     info = read_scan_info(source / "training/velodyne_info/000000.npz", len(pts))
@@ -85,6 +86,8 @@ def test_reduce_beams_keeps_every_other_ring_with_or_without_side_files(source, 
     assert all(a["lidar_points"] == counts.get(a["id"], 0) for a in meta["actors"])
     assert (out / "training/label_2/000000.txt").read_bytes() == \
         (source / "training/label_2/000000.txt").read_bytes()
+    assert not (out / ".done").exists()
+    (source / ".done").unlink()
 
     # a real-KITTI-like copy: no side files, no meta; rings come from the point order
     kitti = tmp_path / "kitti"
@@ -96,3 +99,4 @@ def test_reduce_beams_keeps_every_other_ring_with_or_without_side_files(source, 
     res = CliRunner().invoke(cli, ["reduce-beams", "--data", str(kitti), "--beams", "24",
                                    "--out", str(tmp_path / "bad")])
     assert res.exit_code != 0 and "must divide" in res.output
+    assert not (tmp_path / "bad").exists()  # refused before writing anything

@@ -57,18 +57,25 @@ def test_ring_recovery_from_azimuth_wraps_is_exact(hdl64_scan):
 
 
 def test_ring_recovery_survives_rings_that_start_past_the_back(hdl64_scan):
-    # rotate each ring's point sequence a little (a laser whose revolution starts a few
-    # firings late): its first points move to its end, so the azimuth wraps inside the ring
+    # rotate each ring's point sequence a little: a laser whose revolution starts a few
+    # firings late (its first points move to its end) or early (its last points move to its
+    # start), so the azimuth wraps inside the ring
     s = hdl64_scan
     rng = np.random.default_rng(1)
     order = []
     for ring in range(64):
         ix = np.flatnonzero(s.ring == ring)
-        order.append(np.roll(ix, -int(rng.integers(0, 6))))
+        order.append(np.roll(ix, int(rng.integers(-8, 9))))
     order = np.concatenate(order)
     ring, method = recover_rings(s.points[order], 64)
     assert method == "azimuth-wrap"
-    assert np.array_equal(ring, s.ring[order])
+    # where two lasers' points meet with no step back in azimuth, only elevation could tell:
+    # the few points misplaced there are behind the car (out of the camera's view) and one
+    # ring off
+    bad = ring != s.ring[order]
+    assert bad.mean() < 1e-3
+    assert np.all(np.abs(s.azimuth[order][bad]) > np.deg2rad(160))
+    assert np.all(np.abs(ring[bad].astype(int) - s.ring[order][bad]) == 1)
 
 
 def test_ring_recovery_falls_back_to_elevation_clustering():

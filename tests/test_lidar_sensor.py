@@ -30,13 +30,19 @@ def _r(s) -> np.ndarray:
 def _facing(s, half_angle_deg=2.0) -> np.ndarray:
     """Returns within a few degrees of normal incidence on the wall ahead."""
     el = np.arctan2(s.points[:, 2], np.hypot(s.points[:, 0], s.points[:, 1]))
-    return (np.abs(s.azimuth) < np.deg2rad(half_angle_deg)) & (np.abs(el) < np.deg2rad(half_angle_deg))
+    lim = np.deg2rad(half_angle_deg)
+    return (np.abs(s.azimuth) < lim) & (np.abs(el) < lim)
 
 
 def test_range_exponent_fits_both_datasheet_points():
     spec = preset("hdl64e")
     assert spec.power(np.array([0.1]), np.array([50.0]))[0] == pytest.approx(1.0)
     assert spec.power(np.array([0.8]), np.array([120.0]))[0] == pytest.approx(1.0)
+    rho = np.random.default_rng(0).uniform(0, 1, 10_000).astype(np.float32)
+    dist = np.random.default_rng(1).uniform(1, 120, 10_000).astype(np.float32)
+    p = spec.power(rho, dist)
+    clear = np.abs(p - 1) > 1e-4  # away from float32 rounding at the threshold itself
+    assert np.array_equal(spec.detected(rho, dist)[clear], (p >= 1)[clear])
 
 
 def test_dark_far_surfaces_vanish_first():

@@ -7,7 +7,7 @@ from lifter_synth import make_frame
 from kitti.boxes import rot_y
 from lifter import frustum
 from lifter.frustum import lift_frustum, thesis_depth_offset
-from lifter.points import frame_points
+from lifter.points import MIN_DEPTH, frame_points
 from lifter.types import Box2D, Prior
 
 
@@ -44,7 +44,8 @@ def test_hidden_car_gets_the_occlusion_rules_depth():
     b = [-0.8, 1.65, 17.0, 1.5, 1.7, 4.2, 0.40]   # behind it, its centre column hidden by it
     fr = make_frame([a, b])
     pts = frame_points(fr.velodyne, fr.calib, None)
-    hit = fr.hit_id[pts.rect[:, 2] > 0.5] if len(fr.hit_id) != len(pts.rect) else fr.hit_id
+    in_front = fr.calib.lidar_to_rect(fr.velodyne[:, :3].astype(float))[:, 2] > MIN_DEPTH
+    hit = fr.hit_id[in_front]  # the box each kept return came from
     boxes = [Box2D("Car", o.bbox, 1.0) for o in fr.objects]
     priors = [Prior(np.array([o.h, o.w, o.l]), o.alpha) for o in fr.objects]
     above = pts.sensor[1] + frustum.LIDAR_HEIGHT - pts.rect[:, 1] > frustum.GROUND_CUT

@@ -86,8 +86,6 @@ def test_fixing_one_factor_leaves_the_others_draws_unchanged():
 
 
 def test_sampled_worlds_are_deterministic_and_collision_free():
-    import shapely
-
     from simgen.sample import EGO_FOOTPRINT, _footprint
 
     spec = load_spec(Path(__file__).resolve().parents[1] / "scenes/urban.yaml")
@@ -104,3 +102,28 @@ def test_sampled_worlds_are_deterministic_and_collision_free():
         assert a.pose[2, 3] in (0.0, w1.scenery["road"]["curb_height"])
         assert a.pose[2, 2] == 1.0
     assert max(a.pose[0, 3] for a in w1.actors) > 100.0  # traffic out beyond 100 m
+
+
+def test_intersection_keeps_its_cross_street_clear():
+    import shapely
+
+    from simgen.road import RoadLayout
+    from simgen.scenery import build_scenery
+
+    spec = spec_from_dict({"name": "i", "road": {"type": "intersection", "intersection_distance": 30,
+                                                 "cross_lanes_per_direction": 2},
+                           "traffic": {"vehicles_per_100m": 5, "pedestrians_per_100m": 20}})
+    world = sample_world(spec, 2, 0)
+    road = RoadLayout(**world.scenery["road"])
+    assert road.cross_s == 30.0 and road.curvature == 0.0
+    crossing = [a for a in world.actors  # vehicles heading along +-y
+                if a.cls in ("Car", "Van", "Truck") and abs(a.pose[1, 0]) > 0.9]
+    assert len(crossing) >= 2
+    for a in crossing:
+        assert abs(a.pose[0, 3] - 30.0) < road.cross_half_width
+    for a in world.actors:
+        if a.cls == "Pedestrian":
+            assert not road.in_cross_street(a.pose[0, 3])
+    band = shapely.box(30.0 - road.cross_half_width, -100, 30.0 + road.cross_half_width, 100)
+    _, obstacles = build_scenery(world.scenery)
+    assert obstacles and not any(o.polygon.intersects(band) for o in obstacles)

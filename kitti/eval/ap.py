@@ -2,8 +2,10 @@
 
 Precision at the t-th threshold stands for recall t/40 (the devkit never interpolates on the
 measured recall); precision is made monotone (`p[i] = max(p[i:])`); AP|R11 averages slots
-0, 4, ..., 40 (recall 0 included) and AP|R40 slots 1..40, in single precision as the devkit does. Fewer than 41 thresholds (recall never
-reaches 1) leave the remaining slots at 0.
+0, 4, ..., 40 (recall 0 included) and AP|R40 slots 1..40, in single precision as the devkit
+does. Fewer than 41 thresholds (recall never reaches 1) leave the remaining slots at 0. A threshold
+where no detection counts (TP + FP = 0, possible only when every detection went to ignored truth)
+has precision 0 here; the devkit would divide 0 by 0.
 """
 
 from __future__ import annotations
@@ -24,7 +26,6 @@ class Curve:
     precision: np.ndarray  # (41,)
     aos: np.ndarray | None  # (41,) when orientation is scored
     n_gt: int
-    n_thresholds: int
     recall: float  # with every detection (no score threshold); 0 without truth
 
     @staticmethod
@@ -88,4 +89,4 @@ def curve(p: Packed, ov: np.ndarray, ig_gt: np.ndarray, ig_dt: np.ndarray, min_o
         aos = np.zeros(N_SAMPLE_PTS)
         aos[:n] = np.where(den > 0, sim / np.maximum(den, 1), 0.0)
         aos = np.maximum.accumulate(aos[::-1])[::-1]
-    return Curve(prec, aos, n_gt, n, recall)
+    return Curve(prec, aos, n_gt, recall)

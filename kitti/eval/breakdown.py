@@ -16,8 +16,9 @@ import numba
 import numpy as np
 
 from .frames import Packed
-from .volumetric import centres
+from .volumetric import centres, volumetric
 
+MATCHINGS = ("iou3d", "centre")
 CENTRE_GATE_M = 2.0
 CENTRE_GATE_FRACTION = 0.10
 
@@ -93,3 +94,29 @@ def bin_index(distance: np.ndarray, edges: np.ndarray) -> np.ndarray:
     """Bin of each distance in [edges[k], edges[k+1]); -1 outside every bin."""
     k = np.searchsorted(edges, distance, side="right") - 1
     return np.where((k >= 0) & (k < len(edges) - 1), k, -1)
+
+
+def pair_breakdowns(p: Packed, classes: list[str], ov3d: np.ndarray, edges: np.ndarray | None,
+                    match_iou: float, min_score: float | None, max_distance: float) -> tuple[dict, dict]:
+    """({matching: {class: errors}}, {matching: {class: volumetric}}), overall and per bin."""
+    errors: dict = {}
+    vol: dict = {}
+    for how in MATCHINGS:
+        errors[how], vol[how] = {}, {}
+        for cls in classes:
+            gi, dj = match(p, cls, ov3d, how, match_iou, min_score)
+            g7, d7 = p.gt.box7[gi], p.dt.box7[dj]
+            of_cls = (p.gt.type == cls.lower()) & p.gt.has_3d
+            e = {"all": {**pair_errors(g7, d7), "n_gt": int(of_cls.sum())}}
+            v = {"all": volumetric(g7, d7, max_distance)}
+            if edges is not None:
+                kb, kg = bin_index(p.gt.distance[gi], edges), bin_index(p.gt.distance, edges)
+                e["bins"], v["bins"] = [], []
+                for k in range(len(edges) - 1):
+                    rng = [float(edges[k]), float(edges[k + 1])]
+                    sel = kb == k
+                    e["bins"].append({"range": rng, **pair_errors(g7[sel], d7[sel]),
+                                      "n_gt": int((of_cls & (kg == k)).sum())})
+                    v["bins"].append({"range": rng, **volumetric(g7[sel], d7[sel], max_distance)})
+            errors[how][cls], vol[how][cls] = e, v
+    return errors, vol

@@ -14,9 +14,7 @@ from .frames import Packed, pack
 from .overlaps import dontcare_overlap, pair_overlaps
 from .protocol import DIFFICULTIES, METRICS, clean, min_overlap, restrict
 from .report import EvalResult
-from .volumetric import DEFAULT_MAX_DISTANCE, volumetric
-
-MATCHINGS = ("iou3d", "centre")
+from .volumetric import DEFAULT_MAX_DISTANCE
 
 
 def _progress(items: list, on: bool, desc: str):
@@ -92,6 +90,25 @@ def _metrics_for(cls_absent: dict, metrics: Sequence[str]) -> list[str]:
     return ms
 
 
+def _range_bins(p: Packed, classes: list[str], metrics: list[str], absent: dict, ovs: dict,
+                dc_ov: np.ndarray, edges: np.ndarray, progress: bool) -> dict:
+    """Strict AP per distance bin; objects outside the bin are ignored, not deleted."""
+    gt_bin, dt_bin = breakdown.bin_index(p.gt.distance, edges), breakdown.bin_index(p.dt.distance, edges)
+    out = {"edges": edges.tolist(), "distance": "ground (camera x-z) distance of the location",
+           "bins": []}
+    for k in _progress(list(range(len(edges) - 1)), progress, "range bins"):
+        entry = {"range": [float(edges[k]), float(edges[k + 1])], "ap": {}, "n_gt": {}}
+        for cls in classes:
+            ms = _metrics_for(absent.get(cls, {}), metrics)
+            b = _ap_block(p, cls, ms, ovs, dc_ov, False, (gt_bin == k, dt_bin == k))
+            entry["n_gt"][cls] = b.n_gt
+            # no truth in the bin: AP is undefined, reported as None rather than 0
+            entry["ap"][cls] = {m: {key: [v if n else None for v, n in zip(vals, b.n_gt)]
+                                    for key, vals in b.ap[m].items()} for m in ms if m in metrics}
+        out["bins"].append(entry)
+    return out
+
+
 def evaluate(gt: Mapping[str, Sequence[Object3D]], dt: Mapping[str, Sequence[Object3D]],
              classes: Iterable[str] = ("Car", "Pedestrian", "Cyclist"),
              metrics: Iterable[str] = METRICS, range_bins: Sequence[float] | None = None,
@@ -133,42 +150,10 @@ def evaluate(gt: Mapping[str, Sequence[Object3D]], dt: Mapping[str, Sequence[Obj
         ap_loose[cls] = _ap_block(p, cls, [m for m in ms if m in ("bev", "3d")], ovs, dc_ov, True,
                                   None).ap
 
-    bins_out = None
-    if edges is not None:
-        gt_bin, dt_bin = breakdown.bin_index(p.gt.distance, edges), breakdown.bin_index(p.dt.distance, edges)
-        bins_out = {"edges": edges.tolist(), "distance": "ground (camera x-z) distance of the location",
-                    "bins": []}
-        for k in _progress(list(range(len(edges) - 1)), progress, "range bins"):
-            entry = {"range": [float(edges[k]), float(edges[k + 1])], "ap": {}, "n_gt": {}}
-            for cls in classes:
-                ms = _metrics_for(absent.get(cls, {}), metrics)
-                b = _ap_block(p, cls, ms, ovs, dc_ov, False, (gt_bin == k, dt_bin == k))
-                entry["n_gt"][cls] = b.n_gt
-                # no truth in the bin: AP is undefined, reported as None rather than 0
-                entry["ap"][cls] = {m: {key: [v if n else None for v, n in zip(vals, b.n_gt)]
-                                        for key, vals in b.ap[m].items()} for m in ms if m in metrics}
-            bins_out["bins"].append(entry)
-
-    errors: dict = {}
-    vol: dict = {}
-    for how in MATCHINGS:
-        errors[how], vol[how] = {}, {}
-        for cls in classes:
-            gi, dj = breakdown.match(p, cls, ovs["3d"], how, match_iou, min_score)
-            g7, d7 = p.gt.box7[gi], p.dt.box7[dj]
-            of_cls = (p.gt.type == cls.lower()) & p.gt.has_3d
-            e = {"all": {**breakdown.pair_errors(g7, d7), "n_gt": int(of_cls.sum())}}
-            v = {"all": volumetric(g7, d7, max_distance)}
-            if edges is not None:
-                kb, kg = breakdown.bin_index(p.gt.distance[gi], edges), breakdown.bin_index(p.gt.distance, edges)
-                e["bins"], v["bins"] = [], []
-                for k in range(len(edges) - 1):
-                    rng = [float(edges[k]), float(edges[k + 1])]
-                    sel = kb == k
-                    e["bins"].append({"range": rng, **breakdown.pair_errors(g7[sel], d7[sel]),
-                                      "n_gt": int((of_cls & (kg == k)).sum())})
-                    v["bins"].append({"range": rng, **volumetric(g7[sel], d7[sel], max_distance)})
-            errors[how][cls], vol[how][cls] = e, v
+    bins_out = None if edges is None else _range_bins(p, classes, metrics, absent, ovs, dc_ov, edges,
+                                                      progress)
+    errors, vol = breakdown.pair_breakdowns(p, classes, ovs["3d"], edges, match_iou, min_score,
+                                            max_distance)
 
     settings = {"frames": len(p.ids), "classes": classes, "metrics": metrics,
                 "strict_iou": {c: {m: min_overlap(c, m) for m in ("2d", "bev", "3d")} for c in classes},

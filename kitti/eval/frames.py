@@ -32,11 +32,6 @@ class Objects:
     score: np.ndarray  # (N,) (0 for truth)
 
     @property
-    def frame(self) -> np.ndarray:
-        """(N,) frame index of every object."""
-        return np.repeat(np.arange(len(self.start) - 1), np.diff(self.start))
-
-    @property
     def has_bev(self) -> np.ndarray:
         b = self.box7
         return (b[:, 0] != PLACEHOLDER) & (b[:, 2] != PLACEHOLDER) & (b[:, 4] > 0) & (b[:, 5] > 0)
@@ -62,8 +57,7 @@ def _columns(frames: Sequence[Sequence[Object3D]], detections: bool, ids: Sequen
     n = len(objs)
     return Objects(
         start=np.concatenate([[0], np.cumsum([len(f) for f in frames])]).astype(np.int64),
-        type=np.array([o.type.lower() for o in objs], dtype=object).astype(str) if n else
-        np.zeros(0, dtype=str),
+        type=np.array([o.type.lower() for o in objs], dtype=str),
         bbox=np.array([o.bbox for o in objs], dtype=float).reshape(n, 4),
         truncated=np.array([o.truncated for o in objs], dtype=float),
         occluded=np.array([o.occluded for o in objs], dtype=np.int64),

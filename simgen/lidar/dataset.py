@@ -24,7 +24,7 @@ from kitti.io import atomic_write_text
 from kitti.velodyne import read_velodyne, write_velodyne
 
 from .io import INFO_DIR, info_path, read_scan_info, velodyne_path, write_scan, write_scan_info
-from .rings import recover_rings, reduce_rings
+from .rings import kept_rings, recover_rings, reduce_rings
 from .scan import scan
 from .spec import preset
 
@@ -58,8 +58,9 @@ def mirror_dataset(src: Path, dst: Path) -> None:
         raise ValueError(f"--out {dst} is the source dataset itself; choose a new directory")
     for path in sorted(src.rglob("*")):
         rel = path.relative_to(src)
-        if not path.is_file() or rel.name in (PROVENANCE, MANIFEST):
-            continue
+        if not path.is_file() or rel.name in (PROVENANCE, MANIFEST) \
+                or any(part.startswith(".") for part in rel.parts):
+            continue  # hidden files are stage markers (.done) or half-written temporaries
         if len(rel.parts) >= 3 and rel.parts[0] in PARTS and rel.parts[1] in NEW_DIRS:
             continue
         _link_or_copy(path, dst / rel)
@@ -164,6 +165,13 @@ def _source_beams(meta: dict | None, given: int | None) -> int:
     if isinstance(lidar, dict) and lidar.get("preset"):
         return preset(lidar["preset"], beams=lidar.get("beams")).beams
     return 64
+
+
+def check_reduction(src: Path, job: ReduceJob) -> None:
+    """Fail before any work when --beams cannot divide the (first frame's) source beams."""
+    meta_in = src / job.src.name / "meta" / f"{job.fid}.json"
+    meta = _read_meta(meta_in) if meta_in.exists() else None
+    kept_rings(_source_beams(meta, job.source_beams), job.beams)
 
 
 def reduce_frame(job: ReduceJob) -> str:

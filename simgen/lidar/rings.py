@@ -3,9 +3,10 @@ of a real KITTI scan that has no side file.
 
 Recovery. KITTI .bin points are stored laser by laser, each laser one revolution in firing
 order, so within a ring the azimuth atan2(y, x) moves steadily one way and it jumps back by
-about 2 pi where the next ring starts. Rings are the runs between those jumps (a few points
-cut off by a laser that starts just past the back rejoin their ring), numbered from the top
-by their median elevation. When the jumps do not give exactly the expected ring count
+about 2 pi where the next ring starts. Rings are the runs between those jumps, numbered from
+the top by their median elevation; a laser whose revolution does not start exactly at the back
+wraps inside its own ring, and the few points that end up on the wrong side of a jump rejoin
+the ring they share an elevation with. When the jumps do not give exactly the expected ring count
 (an empty ring, a ring cut at the back), rings come from 1-D k-means on the elevation angle
 instead, started from the HDL-64E table.
 """
@@ -37,15 +38,16 @@ def elevation(points: np.ndarray) -> np.ndarray:
     return np.arctan2(points[:, 2], np.hypot(points[:, 0], points[:, 1]))
 
 
-def rings_from_azimuth_wraps(points: np.ndarray) -> np.ndarray:
-    """Run index per point: a new run starts where the azimuth jumps back by more than pi."""
+def rings_from_azimuth_wraps(points: np.ndarray, jitter_deg: float = 0.25) -> np.ndarray:
+    """Run index per point: a new run starts wherever the azimuth wraps (jumps by more than
+    pi either way) or steps back against the rotation by more than `jitter_deg`."""
     if len(points) < 2:
         return np.zeros(len(points), np.int64)
     az = np.arctan2(points[:, 1], points[:, 0])
     d = np.diff(az)
     small = d[np.abs(d) < np.pi]
     direction = np.sign(np.median(small)) if len(small) else 1.0
-    starts = direction * d < -np.pi
+    starts = (np.abs(d) > np.pi) | (direction * d < -np.deg2rad(jitter_deg))
     return np.concatenate([[0], np.cumsum(starts)])
 
 
@@ -73,8 +75,9 @@ def rings_from_elevation(points: np.ndarray, beams: int, iterations: int = 30) -
 def merge_short_runs(runs: np.ndarray, el: np.ndarray, share: float = 0.05) -> np.ndarray:
     """Fold runs shorter than `share` of the median run into the neighbour nearest in elevation.
 
-    A laser whose revolution starts just past the back wraps once inside its own ring, which
-    cuts a few points off its start or end; they rejoin the ring they share an elevation with.
+    A laser whose revolution does not start exactly at the back wraps inside its own ring: a
+    few of its points land beyond the wrap, next to the neighbouring laser's, and form short
+    runs; each rejoins the ring it shares an elevation with.
     """
     runs = runs.copy()
     while True:
@@ -93,8 +96,10 @@ def merge_short_runs(runs: np.ndarray, el: np.ndarray, share: float = 0.05) -> n
 def recover_rings(points: np.ndarray, beams: int = 64) -> tuple[np.ndarray, str]:
     """Ring per point (0 = top) of a KITTI-ordered scan, and the method that found it."""
     el = elevation(points)
-    runs = merge_short_runs(rings_from_azimuth_wraps(points), el) if len(points) else \
-        np.zeros(0, np.int64)
+    if len(points):
+        runs = merge_short_runs(rings_from_azimuth_wraps(points), el)
+    else:
+        runs = np.zeros(0, np.int64)
     if len(points) and runs.max() + 1 == beams:
         med = np.array([np.median(el[runs == k]) for k in range(beams)])
         rank = np.empty(beams, np.int64)

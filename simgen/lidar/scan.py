@@ -84,14 +84,14 @@ def scan(world: World, spec: LidarSpec, seed: int | np.random.Generator,
     n = len(rays.time)
 
     d_w = _world_dirs(spec, tuple(world.lidar_pose[:3, :3].ravel().tolist()))
-    origins = np.empty((n, 3), np.float32)
-    ego_v = np.asarray(world.ego_velocity, dtype=np.float32)
-    if spec.motion and np.any(ego_v):
-        np.multiply(rays.time32[:, None], ego_v[None, :], out=origins)
-        origins += world.lidar_pose[:3, 3].astype(np.float32)
+    ego_v = np.asarray(world.ego_velocity, dtype=np.float64)
+    o0 = world.lidar_pose[:3, 3]
+    if spec.motion and np.any(ego_v):  # one origin per firing column, shared by its lasers
+        col_t = rays.time[:rays.columns, None]
+        origins = np.tile((o0 + col_t * ego_v).astype(np.float32), (spec.beams, 1))
     else:
-        origins[:] = world.lidar_pose[:3, 3]
-
+        origins = np.empty((n, 3), np.float32)
+        origins[:] = o0
     if tgt.n_triangles:
         res = tgt.scene.run(origins, d_w, dists=spec.max_range + 1.0, output=1)
         prim, ng = res["primID"], res["Ng"]
@@ -101,7 +101,9 @@ def scan(world: World, spec: LidarSpec, seed: int | np.random.Generator,
     tri = prim[idx]
     r = res["tfar"][idx] if tgt.n_triangles else np.zeros(0, np.float32)
     # incidence from the full-length dot product: cheaper than gathering (N, 3) rows
-    cos_inc = np.abs(np.einsum("ij,ij->i", ng, d_w)[idx]) * tgt.tri_inv_ng[tri]
+    cos_inc = np.einsum("ij,ij->i", ng, d_w)[idx]
+    np.abs(cos_inc, out=cos_inc)
+    cos_inc *= tgt.tri_inv_ng[tri]
 
     if spec.motion and tri.size and tgt.first_moving < tgt.n_triangles:
         sel = np.flatnonzero(tri >= tgt.first_moving)
@@ -115,14 +117,19 @@ def scan(world: World, spec: LidarSpec, seed: int | np.random.Generator,
 
     beta = total_extinction(world.weather) if spec.weather else 0.0
     rho_cos = tgt.tri_refl[tri] * cos_inc
-    keep = np.ones(len(r), bool)
-    if spec.detection:  # on the true range: the echo's power does not see the range noise
-        keep &= spec.power(rho_cos, r, beta) >= 1.0
+    if not spec.detection:
+        keep = np.ones(len(r), bool)
+    elif beta > 0:  # on the true range: the echo's power does not see the range noise
+        keep = spec.power(rho_cos, r, beta) >= 1.0
+    else:
+        keep = spec.detected(rho_cos, r)
     if spec.dropout > 0:
         keep &= rng.random(len(r), dtype=np.float32) >= spec.dropout
     if spec.noise_sigma > 0 or spec.bias_sigma > 0:
-        r += _laser_biases(spec)[rays.ring[idx]]
-        r += rng.standard_normal(len(r), dtype=np.float32) * np.float32(spec.noise_sigma)
+        r += _ray_biases(spec)[idx]
+        noise = rng.standard_normal(len(r), dtype=np.float32)
+        noise *= np.float32(spec.noise_sigma)
+        r += noise
     keep &= (r >= spec.min_range) & (r <= spec.max_range)
     aid = tgt.tri_actor[tri]
 
@@ -151,7 +158,9 @@ def scan(world: World, spec: LidarSpec, seed: int | np.random.Generator,
     if len(near):
         refl[near] *= (np.float32(spec.saturation_range) / r[near]) ** 2
     np.clip(refl, 0.0, 1.0, out=refl)
-    refl = np.round(refl * np.float32(100.0)) / np.float32(100.0)
+    refl *= np.float32(100.0)
+    np.rint(refl, out=refl)
+    refl /= np.float32(100.0)
 
     points = np.take(rays.dirs4, idx, axis=0)
     points *= r[:, None]
@@ -173,5 +182,6 @@ def _world_dirs(spec: LidarSpec, rot: tuple[float, ...]) -> np.ndarray:
 
 
 @lru_cache(maxsize=16)
-def _laser_biases(spec: LidarSpec) -> np.ndarray:
-    return spec.laser_biases().astype(np.float32)
+def _ray_biases(spec: LidarSpec) -> np.ndarray:
+    """Each ray's laser bias, so a scan gathers once instead of twice."""
+    return spec.laser_biases().astype(np.float32)[ray_table(spec).ring]

@@ -14,7 +14,8 @@ import numpy as np
 # HDL-64E S2 as mounted on the KITTI car: an upper block of 32 lasers from +2.0 deg down in
 # 1/3 deg steps and a lower block of 32 lasers ending at -24.9 deg in about 1/2 deg steps.
 _HDL64E_UPPER = tuple(round(2.0 - i / 3.0, 4) for i in range(32))  # +2.0 ... -8.333
-_HDL64E_LOWER = tuple(round(-8.83 - i * (24.9 - 8.83) / 31.0, 4) for i in range(32))  # -8.83 ... -24.9
+# lower block: -8.83 ... -24.9
+_HDL64E_LOWER = tuple(round(-8.83 - i * (24.9 - 8.83) / 31.0, 4) for i in range(32))
 HDL64E_ELEVATIONS = _HDL64E_UPPER + _HDL64E_LOWER
 
 HDL32E_ELEVATIONS = tuple(round(10.67 - i * (10.67 + 30.67) / 31.0, 4) for i in range(32))
@@ -109,6 +110,13 @@ class LidarSpec:
         g = self.range_exponent
         rel = rho_cos / 0.1 * (self.dark_range / np.maximum(dist, 1e-3)) ** g
         return rel * np.exp(-2.0 * beta * dist) if beta > 0 else rel
+
+    def detected(self, rho_cos: np.ndarray, dist: np.ndarray) -> np.ndarray:
+        """power(rho_cos, dist) >= 1 in clear air, in fewer passes (the scan's hot path)."""
+        g = self.range_exponent
+        need = np.power(dist, np.float32(g))
+        need *= np.float32(0.1 / self.dark_range ** g)
+        return rho_cos >= need
 
     def laser_biases(self) -> np.ndarray:
         """The unit's fixed per-laser range biases (m), the same for every frame it scans; a

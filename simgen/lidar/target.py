@@ -10,6 +10,8 @@ pose at the instant the head sweeps across the actor's centre bearing (`placed_t
 that instant and the ray's own time. For an actor seen by a 10 Hz head the beam crosses it
 within a few milliseconds of the placement, so the error is second order (a car 4 m wide at
 10 m spans 23 deg = 6 ms: at 15 m/s its edges are placed 5 cm off before the correction).
+An actor straddling the back, where a sweep starts and ends 0.1 s apart, is seen at both
+ends; its hits are shifted likewise, but its silhouette there may be off by up to v x 0.1 s.
 """
 
 from __future__ import annotations

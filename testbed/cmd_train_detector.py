@@ -1,0 +1,78 @@
+"""`testbed train-detector`: train FlexiNet on a KITTI-format dataset (ours or real KITTI)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+
+def _split(value: str) -> str | None:
+    return None if value == "all" else value
+
+
+@click.command("train-detector")
+@click.option("--data", required=True, type=click.Path(exists=True, file_okay=False, path_type=Path),
+              help="KITTI-format training root.")
+@click.option("--out", required=True, type=click.Path(file_okay=False, path_type=Path),
+              help="Run folder: last.pt (each epoch), weights.pt (final EMA weights), history.csv/png.")
+@click.option("--preset", default="small", show_default=True, type=click.Choice(["small", "s", "vehicle"]),
+              help="depth/width multiples: small 0.33/0.25, s 0.33/0.50, vehicle 0.55/0.55.")
+@click.option("--epochs", default=30, show_default=True, type=click.IntRange(1))
+@click.option("--img-size", nargs=2, type=click.IntRange(32), default=None,
+              help="Network input W H (multiples of 32) [default: 640 wide, height to fit].")
+@click.option("--batch", default=16, show_default=True, type=click.IntRange(1))
+@click.option("--lr", default=0.01, show_default=True, type=float)
+@click.option("--momentum", default=0.94, show_default=True, type=float)
+@click.option("--weight-decay", default=5e-4, show_default=True, type=float)
+@click.option("--schedule", default="cosine", show_default=True, type=click.Choice(["cosine", "step"]))
+@click.option("--warmup-epochs", default=1.0, show_default=True, type=float)
+@click.option("--activation", default="hardswish", show_default=True,
+              type=click.Choice(["hardswish", "silu", "swish", "mish", "frelu"]))
+@click.option("--box-loss", default="diou", show_default=True, type=click.Choice(["diou", "giou", "ciou"]))
+@click.option("--mosaic", default=1.0, show_default=True, type=click.FloatRange(0, 1), help="Mosaic probability.")
+@click.option("--scale", default=0.4, show_default=True, type=click.FloatRange(0, 0.99), help="Zoom +- range.")
+@click.option("--fliplr", default=0.5, show_default=True, type=click.FloatRange(0, 1))
+@click.option("--hsv/--no-hsv", default=True, show_default=True, help="Colour jitter.")
+@click.option("--mixup", default="none", show_default=True, type=click.Choice(["none", "mixup", "thresholded"]),
+              help="004 Mixup: plain, or only when the two images' boxes overlap below --mixup-iou.")
+@click.option("--mixup-prob", default=0.5, show_default=True, type=click.FloatRange(0, 1))
+@click.option("--mixup-iou", default=0.4, show_default=True, type=click.FloatRange(0, 1))
+@click.option("--close-mosaic", default=3, show_default=True, type=click.IntRange(0),
+              help="Last epochs without mosaic/zoom (plain letterboxed images).")
+@click.option("--train-split", default="train", show_default=True, help="ImageSets name, or 'all'.")
+@click.option("--val-data", type=click.Path(exists=True, file_okay=False, path_type=Path),
+              help="Evaluation root [default: --data].")
+@click.option("--val-split", default="val", show_default=True, help="ImageSets name, or 'all'.")
+@click.option("--eval-every", default=1, show_default=True, type=click.IntRange(0),
+              help="Epochs between 2D AP evaluations (0: never).")
+@click.option("--seed", default=0, show_default=True, type=click.IntRange(0))
+@click.option("--threads", default=2, show_default=True, type=click.IntRange(1))
+@click.option("--resume", is_flag=True, help="Continue from OUT/last.pt.")
+def train_detector(data: Path, out: Path, preset: str, epochs: int, img_size, batch: int, lr: float,
+                   momentum: float, weight_decay: float, schedule: str, warmup_epochs: float,
+                   activation: str, box_loss: str, mosaic: float, scale: float, fliplr: float, hsv: bool,
+                   mixup: str, mixup_prob: float, mixup_iou: float, close_mosaic: int, train_split: str,
+                   val_data: Path | None, val_split: str, eval_every: int, seed: int, threads: int,
+                   resume: bool) -> None:
+    """Train the FlexiNet 2D detector (Car incl. Van, Pedestrian, Cyclist) on DATA."""
+    from detector.augment import AugmentConfig
+    from detector.train import TrainConfig, train
+    from kitti.errors import KittiFormatError
+
+    try:
+        aug = AugmentConfig(mosaic=mosaic, scale=scale, fliplr=fliplr,
+                            hsv=AugmentConfig().hsv if hsv else (0.0, 0.0, 0.0),
+                            mixup=mixup, mixup_prob=mixup_prob, mixup_iou=mixup_iou)
+        cfg = TrainConfig(data=str(data), out=str(out), preset=preset, epochs=epochs,
+                          img_size=tuple(img_size) if img_size else None, batch=batch, lr=lr,
+                          momentum=momentum, weight_decay=weight_decay, warmup_epochs=warmup_epochs,
+                          schedule=schedule, activation=activation, box_loss=box_loss, augment=aug,
+                          close_mosaic=close_mosaic, train_split=_split(train_split),
+                          val_split=_split(val_split), val_data=str(val_data) if val_data else None,
+                          eval_every=eval_every, seed=seed, threads=threads)
+        row = train(cfg, resume=resume)
+    except (KittiFormatError, ValueError, FileNotFoundError) as e:
+        raise click.ClickException(str(e)) from None
+    click.echo(" ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in row.items()))
+    click.echo(f"weights: {out / 'weights.pt'}")

@@ -1,0 +1,74 @@
+"""FlexiNet shapes for every preset and activation, scaling rules, BN folding."""
+import pytest
+import torch
+
+from detector.layers import ACTIVATIONS, Focus
+from detector.model import PRESETS, STRIDES, FlexiNet, ModelConfig, count_parameters
+
+
+@pytest.mark.parametrize("preset", sorted(PRESETS))
+def test_output_shapes_every_preset(preset):
+    torch.manual_seed(0)
+    cfg = ModelConfig.from_preset(preset, num_classes=3)
+    model = FlexiNet(cfg).eval()
+    x = torch.rand(1, 3, 64, 96)
+    raw = model(x)
+    assert len(raw) == 3
+    for p, s in zip(raw, STRIDES):
+        assert p.shape == (1, 3, 64 // s, 96 // s, 8)
+    dec = model.predict_raw(x)
+    n = sum(3 * (64 // s) * (96 // s) for s in STRIDES)
+    assert dec.shape == (1, n, 8)
+    assert torch.isfinite(dec).all()
+
+
+def test_presets_scale_depth_and_width():
+    sizes = {p: count_parameters(FlexiNet(ModelConfig.from_preset(p))) for p in PRESETS}
+    assert sizes["small"] < sizes["s"] < sizes["vehicle"]
+    # width 0.25 -> 0.50 with the same depth: conv weights grow about 4x
+    assert 3.3 < sizes["s"] / sizes["small"] < 4.5
+    m = FlexiNet(ModelConfig.from_preset("vehicle"))
+    # vehicle: 0.55 x (3, 9, 9, 3) CSP repeats -> 2, 5, 5, 2 bottlenecks; 0.55 x 64 -> 40 stem channels
+    assert [len(s[1].m) for s in (m.down1, m.down2, m.down3)] == [2, 5, 5]
+    assert m.stem.conv.conv.out_channels == 40
+
+
+@pytest.mark.parametrize("act", ACTIVATIONS)
+def test_every_activation_runs_and_fuses_exactly(act):
+    torch.manual_seed(1)
+    model = FlexiNet(ModelConfig(activation=act, width_multiple=0.125))
+    model.train()
+    for _ in range(2):  # give batch norms non-trivial running statistics
+        model(torch.rand(2, 3, 64, 96))
+    model.eval()
+    x = torch.rand(1, 3, 64, 96)
+    ref = model.predict_raw(x)
+    fused = model.fuse().predict_raw(x)
+    assert torch.allclose(ref, fused, rtol=1e-4, atol=1e-4)
+
+
+def test_focus_is_space_to_depth():
+    f = Focus(3, 8)
+    x = torch.arange(2 * 3 * 4 * 6, dtype=torch.float32).view(2, 3, 4, 6)
+    captured = {}
+
+    def grab(module, inputs, output):
+        captured["in"] = inputs[0]
+
+    f.conv.conv.register_forward_hook(grab)
+    f(x)
+    s2d = captured["in"]
+    assert s2d.shape == (2, 12, 2, 3)
+    # channel block 1 holds the odd rows, even columns: input pixel (1, 0) goes to (0, 0)
+    assert s2d[0, 3, 0, 0] == x[0, 0, 1, 0]
+    assert s2d[0, 6, 0, 0] == x[0, 0, 0, 1]
+    assert s2d[0, 9, 1, 2] == x[0, 0, 3, 5]
+
+
+def test_bad_inputs_are_named():
+    with pytest.raises(ValueError, match="multiples of 32"):
+        FlexiNet(ModelConfig())(torch.rand(1, 3, 100, 96))
+    with pytest.raises(ValueError, match="activation"):
+        FlexiNet(ModelConfig(activation="relu6"))
+    with pytest.raises(ValueError, match="preset"):
+        ModelConfig.from_preset("huge")
