@@ -33,7 +33,7 @@ def reduce_beams(dataset: Path, beams: int, out: Path, source_beams: int | None,
                 for part in PARTS for fid in reduce_ids(dataset, part)]
         if not jobs:
             raise ValueError(f"{dataset}: no training/velodyne/*.bin (or testing/) to reduce")
-        check_reduction(dataset, jobs[0])
+        check_reduction(jobs[0])
         claim_output(dataset, out, {"command": "reduce-beams", "beams": beams,
                                     "source_beams": source_beams})
         mirror_dataset(dataset, out)

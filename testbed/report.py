@@ -42,8 +42,9 @@ def _num(v) -> str:
     return "" if v is None else f"{v:.4f}"
 
 
-def _range_label(lo: float, hi: float) -> str:
-    return f"{lo:g}-{hi:g}" if math.isfinite(hi) else f"{lo:g}+"
+def _range_label(lo: float, hi: float | None) -> str:
+    """'20-40', or '80+' for the open-ended last bin (its edge is null in the JSON)."""
+    return f"{lo:g}+" if hi is None or not math.isfinite(hi) else f"{lo:g}-{hi:g}"
 
 
 def metric_rows(results: list[tuple[Point, dict]]) -> list[dict]:

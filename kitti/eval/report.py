@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 from .protocol import min_overlap
@@ -11,6 +12,16 @@ _LABEL = {"2d": "bbox", "bev": "bev ", "3d": "3d  ", "aos": "aos "}
 
 def _fmt(v) -> str:
     return "  -  " if v is None else f"{v:.2f}"
+
+
+def _finite(obj):
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite(v) for v in obj]
+    return obj
 
 
 @dataclass
@@ -35,10 +46,11 @@ class EvalResult:
     settings: dict = field(default_factory=dict)
 
     def to_json(self) -> dict:
-        return {"ap": self.ap, "ap_loose": self.ap_loose, "n_gt": self.n_gt, "recall": self.recall,
+        """Strict JSON: a non-finite number (an open-ended bin edge such as inf) becomes null."""
+        return _finite({"ap": self.ap, "ap_loose": self.ap_loose, "n_gt": self.n_gt, "recall": self.recall,
                 "absent": self.absent, "range_bins": self.range_bins, "errors": self.errors,
                 "volumetric": self.volumetric, "precision": self.precision,
-                "settings": self.settings}
+                "settings": self.settings})
 
     def table(self) -> str:
         """The printout of the popular Python port of the devkit, R11 ("AP") then R40 blocks."""

@@ -5,6 +5,7 @@ Frames: LiDAR x forward, y left, z up (KITTI velodyne). Rings: 0 = top beam. Tim
 from the camera trigger, when the head faces forward; a 10 Hz sweep spans [-0.05, 0.05] s.
 """
 
+from .dataset import lidar_seed
 from .io import read_scan, read_scan_info, write_scan
 from .rays import RayTable, ray_table
 from .rings import kept_rings, recover_rings, reduce_rings
@@ -14,6 +15,6 @@ from .target import Target, build_target
 
 __all__ = [
     "CLUTTER_ID", "PRESETS", "LidarScan", "LidarSpec", "RayTable", "Target", "build_target",
-    "kept_rings", "preset", "ray_table", "read_scan", "read_scan_info", "recover_rings",
+    "kept_rings", "lidar_seed", "preset", "ray_table", "read_scan", "read_scan_info", "recover_rings",
     "reduce_rings", "scan", "write_scan",
 ]

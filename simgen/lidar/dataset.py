@@ -167,9 +167,9 @@ def _source_beams(meta: dict | None, given: int | None) -> int:
     return 64
 
 
-def check_reduction(src: Path, job: ReduceJob) -> None:
+def check_reduction(job: ReduceJob) -> None:
     """Fail before any work when --beams cannot divide the (first frame's) source beams."""
-    meta_in = src / job.src.name / "meta" / f"{job.fid}.json"
+    meta_in = job.src / "meta" / f"{job.fid}.json"
     meta = _read_meta(meta_in) if meta_in.exists() else None
     kept_rings(_source_beams(meta, job.source_beams), job.beams)
 
