@@ -155,8 +155,9 @@ CSV_FIELDS = ["epoch", "lr", "loss", "box", "obj", "cls", "seconds"] + \
     [f"{c}_2d_R40_{d}" for c in CLASSES for d in ("easy", "moderate", "hard")]
 
 
-def train(cfg: TrainConfig, resume: bool = False) -> dict:
-    """Train; returns the last epoch's row. With resume, continues from out/last.pt exactly."""
+def train(cfg: TrainConfig, resume: bool = False, stop_after: int | None = None) -> dict:
+    """Train; returns the last epoch's row. With resume, continues from out/last.pt exactly.
+    stop_after ends this call after that many epochs (a time-boxed chunk; resume continues)."""
     torch.set_num_threads(cfg.threads)
     torch.manual_seed(cfg.seed)
     out = Path(cfg.out)
@@ -192,7 +193,8 @@ def train(cfg: TrainConfig, resume: bool = False) -> dict:
     nb = math.ceil(n / cfg.batch)
     warmup_iters = max(round(cfg.warmup_epochs * nb), 1)
     row: dict = history[-1] if history else {}
-    for epoch in range(start_epoch, cfg.epochs):
+    end_epoch = cfg.epochs if stop_after is None else min(cfg.epochs, start_epoch + stop_after)
+    for epoch in range(start_epoch, end_epoch):
         t0 = time.time()
         model.train()
         acfg = cfg.augment if epoch < cfg.epochs - cfg.close_mosaic else \
@@ -233,8 +235,9 @@ def train(cfg: TrainConfig, resume: bool = False) -> dict:
             "train_model": model.state_dict(), "optimizer": opt.state_dict(), "epoch": epoch,
             "ema_updates": ema.updates, "history": history, "train_config": _plain(cfg.to_dict())})
         write_history(out, history, plot="Car_2d_R40_moderate" in row or epoch + 1 == cfg.epochs)
-    save_checkpoint(out / "weights.pt", ema.ema, img_size, {"train_config": _plain(cfg.to_dict()),
-                                                           "history": history})
+    if end_epoch == cfg.epochs:
+        save_checkpoint(out / "weights.pt", ema.ema, img_size, {"train_config": _plain(cfg.to_dict()),
+                                                               "history": history})
     return row
 
 

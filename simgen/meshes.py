@@ -71,7 +71,8 @@ _BOX_FACES = np.array([[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7], [0, 1, 5], [0
 
 
 def box(x0, x1, y0, y1, z0, z1) -> trimesh.Trimesh:
-    """Axis-aligned box from its bounds, faces wound outward."""
+    """Axis-aligned box from its bounds (either order), faces wound outward."""
+    (x0, x1), (y0, y1), (z0, z1) = sorted((x0, x1)), sorted((y0, y1)), sorted((z0, z1))
     v = np.array([[x0, y0, z0], [x1, y0, z0], [x1, y1, z0], [x0, y1, z0],
                   [x0, y0, z1], [x1, y0, z1], [x1, y1, z1], [x0, y1, z1]], dtype=float)
     return trimesh.Trimesh(v, _BOX_FACES, process=False)

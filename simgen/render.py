@@ -90,15 +90,25 @@ _PLAIN = pyrender.MetallicRoughnessMaterial(baseColorFactor=(1.0, 1.0, 1.0, 1.0)
 _DIFFUSE = 0.96 * 0.96 / np.pi
 
 
-def _flat_mesh(parts: list[Part], face_colors: list[np.ndarray], material=_PLAIN) -> pyrender.Mesh:
-    """One flat-shaded primitive for many parts, a colour per face (vertices unshared per face)."""
-    pos = np.concatenate([np.asarray(p.mesh.vertices)[np.asarray(p.mesh.faces)] for p in parts])
-    normals = np.concatenate([np.repeat(np.asarray(p.mesh.face_normals), 3, axis=0) for p in parts])
-    col = np.repeat(np.concatenate(face_colors).astype(np.float32), 3, axis=0)
-    prim = pyrender.Primitive(positions=pos.reshape(-1, 3).astype(np.float32),
-                              normals=normals.astype(np.float32),
-                              color_0=np.c_[col, np.ones(len(col), np.float32)], material=material)
+def _flat_mesh(parts: list[Part], shader: "_Shader | None", rotation: np.ndarray, moving: bool,
+               material=_PLAIN) -> pyrender.Mesh:
+    """One flat-shaded primitive for many parts, a colour per face (vertices unshared per face);
+    white faces without a shader (emissive lamps)."""
+    tris, normals = _triangles(parts)
+    face_colors = shader.colors(parts, normals @ rotation.T, moving) if shader else np.ones((len(tris), 3))
+    prim = pyrender.Primitive(positions=tris.reshape(-1, 3).astype(np.float32),
+                              normals=np.repeat(normals, 3, axis=0).astype(np.float32),
+                              color_0=np.c_[np.repeat(face_colors, 3, axis=0), np.ones(3 * len(tris))
+                                            ].astype(np.float32), material=material)
     return pyrender.Mesh([prim])
+
+
+def _triangles(parts: list[Part]) -> tuple[np.ndarray, np.ndarray]:
+    """(F, 3, 3) triangles and (F, 3) unit normals of all parts (numpy, no trimesh caches)."""
+    tris = np.concatenate([np.asarray(p.mesh.vertices)[np.asarray(p.mesh.faces)] for p in parts])
+    n = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
+    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+    return tris, n
 
 
 def _to_sun(light) -> np.ndarray:
@@ -124,22 +134,17 @@ class _Shader:
         self.sun_rgb = np.asarray(SUN[light.time]) * SUN_POWER[light.time] * light.sun_intensity
         self.ambient = AMBIENT[light.time]
 
-    def colors(self, parts: list[Part], rotation: np.ndarray, moving: bool) -> list[np.ndarray]:
-        out = []
-        for p in parts:
-            n = len(p.mesh.faces)
-            if self.mode == "thermal":
-                out.append(np.tile(_thermal(p, moving), (n, 1)))
-                continue
-            albedo = np.asarray(p.material.color, float)
-            if self.mode == "pbr":
-                out.append(np.tile(albedo, (n, 1)))
-                continue
-            normals = np.asarray(p.mesh.face_normals) @ rotation.T
-            sun = np.clip(normals @ self.sun, 0.0, 1.0)[:, None] * self.sun_rgb * _DIFFUSE
-            sky = self.ambient * (0.7 + 0.3 * normals[:, 2:3])
-            out.append(np.clip((albedo * (sun + sky)) ** (1 / 2.2), 0.0, 1.0))
-        return out
+    def colors(self, parts: list[Part], normals: np.ndarray, moving: bool) -> np.ndarray:
+        """(F, 3) colours of all faces of the parts (world-frame normals), in _triangles order."""
+        counts = [len(p.mesh.faces) for p in parts]
+        if self.mode == "thermal":
+            return np.repeat(np.array([_thermal(p, moving) for p in parts]), counts, axis=0)
+        albedo = np.repeat(np.array([p.material.color for p in parts], float), counts, axis=0)
+        if self.mode == "pbr":
+            return albedo
+        sun = np.clip(normals @ self.sun, 0.0, 1.0)[:, None] * self.sun_rgb * _DIFFUSE
+        sky = self.ambient * (0.7 + 0.3 * normals[:, 2:3])
+        return np.clip((albedo * (sun + sky)) ** (1 / 2.2), 0.0, 1.0)
 
 
 def _thermal(part: Part, moving: bool) -> tuple[float, float, float]:
@@ -158,22 +163,21 @@ def build_scene(world: World) -> tuple[pyrender.Scene, dict, int]:
                            ambient_light=(AMBIENT[light.time],) * 3)
     seg: dict = {}
     if world.static:
-        colors = shader.colors(world.static, np.eye(3), False)
-        seg[scene.add(_flat_mesh(world.static, colors))] = (0, 0, 0)
+        seg[scene.add(_flat_mesh(world.static, shader, np.eye(3), False))] = (0, 0, 0)
     lamps: list[tuple[Part, np.ndarray, tuple]] = []
     for actor in world.actors:
         moving = float(np.linalg.norm(actor.velocity)) > 0.5
         lit = shader.mode == "pbr" and moving  # night: moving vehicles' lamps glow; parked stay off
         body = [p for p in actor.parts if not (lit and p.material.name in EMISSIVE)]
         code = (actor.id % 256, actor.id // 256, 0)
-        node = scene.add(_flat_mesh(body, shader.colors(body, actor.pose[:3, :3], moving)), pose=actor.pose)
+        node = scene.add(_flat_mesh(body, shader, actor.pose[:3, :3], moving), pose=actor.pose)
         seg[node] = code
         lamps += [(p, actor.pose, code) for p in actor.parts if lit and p.material.name in EMISSIVE]
     for part, pose, code in lamps:
         mat = pyrender.MetallicRoughnessMaterial(baseColorFactor=(0.0, 0.0, 0.0, 1.0),
                                                  emissiveFactor=EMISSIVE[part.material.name],
                                                  doubleSided=True)
-        seg[scene.add(_flat_mesh([part], [np.ones((len(part.mesh.faces), 3))], mat), pose=pose)] = code
+        seg[scene.add(_flat_mesh([part], None, np.eye(3), True, mat), pose=pose)] = code
     rig = world.rig
     pose, residual = camera_node_pose(rig.cam2_from_world())
     scene.add(_ExactCamera(rig.intrinsics(), residual), pose=pose)

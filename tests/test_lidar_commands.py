@@ -100,3 +100,38 @@ def test_reduce_beams_keeps_every_other_ring_with_or_without_side_files(source, 
                                    "--out", str(tmp_path / "bad")])
     assert res.exit_code != 0 and "must divide" in res.output
     assert not (tmp_path / "bad").exists()  # refused before writing anything
+
+
+def test_actor_points_lie_in_their_boxes_and_the_calibration_maps_the_lidar_frame(source):
+    """With motion off, every point of an actor, taken to the actor's frame through the
+    world's LiDAR pose, lies within the actor's mesh extent (the label box's h, w, l); and the
+    calibration's velodyne frame is that LiDAR pose, so calib.lidar_to_rect takes points to
+    the rect frame the labels are written in."""
+    from kitti.calib import read_calib
+    from simgen.lidar import preset, scan
+    from simgen.meta import world_from_meta
+
+    meta = json.loads((source / "training/meta/000000.json").read_text())
+    calib = read_calib(source / "training/calib/000000.txt")
+    world = world_from_meta(meta)
+    np.testing.assert_array_equal(world.rig.reference_pose, world.lidar_pose)
+    rect_from_world = calib.velo_to_rect @ np.linalg.inv(world.lidar_pose)
+    s = scan(world, preset("hdl64e").ideal(), 0)
+    checked = 0
+    for a in meta["actors"]:
+        pts = s.points[s.actor_id == a["id"], :3].astype(np.float64)
+        if len(pts) < 20:
+            continue
+        actor = world.actor(a["id"])
+        p_world = pts @ world.lidar_pose[:3, :3].T + world.lidar_pose[:3, 3]
+        inv = np.linalg.inv(actor.pose)
+        p_actor = p_world @ inv[:3, :3].T + inv[:3, 3]
+        lo, hi = actor.mesh().bounds
+        assert np.all(p_actor >= lo - 1e-4) and np.all(p_actor <= hi + 1e-4), a["id"]
+        h, w, l = a["box7"][3:6]
+        np.testing.assert_allclose(hi - lo, [l, w, h], atol=1e-9)
+        rect = calib.lidar_to_rect(pts)
+        np.testing.assert_allclose(rect, p_world @ rect_from_world[:3, :3].T
+                                   + rect_from_world[:3, 3], atol=1e-9)
+        checked += 1
+    assert checked >= 3

@@ -15,6 +15,6 @@ from .target import Target, build_target
 
 __all__ = [
     "CLUTTER_ID", "PRESETS", "LidarScan", "LidarSpec", "RayTable", "Target", "build_target",
-    "kept_rings", "lidar_seed", "preset", "ray_table", "read_scan", "read_scan_info", "recover_rings",
-    "reduce_rings", "scan", "write_scan",
+    "kept_rings", "lidar_seed", "preset", "ray_table", "read_scan", "read_scan_info",
+    "recover_rings", "reduce_rings", "scan", "write_scan",
 ]
