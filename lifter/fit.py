@@ -35,6 +35,7 @@ CLUSTER_R = 0.6        # m, bird's-eye linking distance
 CELL = 0.1             # m, bird's-eye cell the returns are pooled in before clustering
 MIN_POINTS = 3         # fewer returns: image-only fallback
 MIN_SEED = 2           # returns of a cluster that may seed an object
+MAX_SEEDS = 3          # best-scoring clusters tried as seeds
 MIN_LSHAPE = 8         # fewer returns: keep the network's yaw
 LSHAPE_D0 = 0.05       # m, closeness floor of the L-shape criterion
 MAX_LSHAPE_POINTS = 300  # returns used for the yaw search (evenly strided)
@@ -43,10 +44,15 @@ SIGMA_IMAGE = 0.15     # m at the object, weight of a 2D-side row (mesh silhouet
 CLAIM_MARGIN = 0.3     # m around a fitted box whose returns it claims
 SIGMA_CENTROID = 3.0   # m, weak pull to the returns' centroid
 FACE_BAND = 0.25       # m, returns this close to an extreme are "at" it
-OCCLUDER_PX = 6.0      # px beyond an extreme searched for a nearer return (an occluder)
-OCCLUDER_GAP = 0.5     # m, how much nearer that return must be
+FACE_SPREAD = 0.3      # of the face's width: returns spreading this far across it show the face
+FACE_MAX_SLIDE = 0.3   # m, how far an end may hide within the 2D side tolerance
+FOCAL_PX = 720.0       # px, a KITTI-like focal length: only for that sensitivity
+WEAK_FACE = 0.1        # weight of an unconfirmed near face, relative to a confirmed one
 FACE_TOL_PX = 3.0      # px, an extreme this close to a 2D side is the outline's end
 FACE_TOL_FRAC = 0.06   # ... or this share of the box width
+MAX_GROW_L = 0.4       # m, most the returns may lengthen the prior box
+MAX_GROW_W = 0.25      # m, most they may widen it
+SHRINK = 0.15          # most the returns may shorten or narrow it (share of the prior)
 MERGE_SLACK = 0.3      # m, how much larger than the size prior's diagonal a merged set may be
 SMALL_CLASSES = ("Pedestrian", "Cyclist", "Person_sitting")
 
@@ -110,45 +116,60 @@ def _fallback(box, prior, calib, image_size, plane, cam) -> Lifted:
     return Lifted(sol.location, sol.rotation_y, np.asarray(prior.dims, dtype=float), quality=0.3)
 
 
-def _faces(pxz: np.ndarray, puv: np.ndarray, e: np.ndarray, size: float, sensor_xz: np.ndarray,
-           box: Box2D, width: int, scene: tuple[np.ndarray, np.ndarray]) -> float | None:
+def _faces(pxz: np.ndarray, puv: np.ndarray, e: np.ndarray, e_other: np.ndarray, size: float,
+           other: float, grow: float, sensor_xz: np.ndarray, box: Box2D,
+           width: int) -> tuple[float, float, float]:
     """The centre coordinate along axis e implied by a true face of the returns, or None.
 
-    The extreme of the returns facing the sensor is a face (or the end of the face seen edge-on)
-    unless the outline is cut there: by the image border (it projects onto a 2D side at the border)
-    or by an occluder (nearer returns right beside it in the image). The far extreme is only
-    trusted where it projects onto a 2D side that is not the border: the object's outline ends
-    there (a far roof or bonnet return is no face). `scene` = (u, range) of every above-road
-    return in the 2D box, for the occluder test.
+    The extreme of the returns facing the sensor is a face when the returns beside it spread
+    across it (the face is seen), or when it reaches a 2D box side (the outline ends there: the
+    end of a face seen edge-on). The far extreme is trusted only in the second case (far roof or
+    bonnet returns are no face). An extreme that touches a box side at the image border is cut
+    there, and one that ends inside the box without showing its face is cut by an occluder:
+    neither is used. When both ends are shown, their distance is the size (within SHRINK below
+    and `grow` above the prior). Returns the centre coordinate, a weight factor and the size.
     """
-    p = rowdot(pxz, e)
+    p, q = rowdot(pxz, e), rowdot(pxz, e_other)
     lo, hi = np.percentile(p, [2.0, 98.0])
     near_lo = sensor_xz @ e < 0.5 * (lo + hi)
     tol = max(FACE_TOL_PX, FACE_TOL_FRAC * (box.bbox[2] - box.bbox[0]))
     x1, x2 = box.bbox[0], box.bbox[2]
     border = [u for u, cut in ((x1, x1 <= 1.0), (x2, x2 >= width - 2.0)) if cut]
     sides = [u for u, cut in ((x1, x1 <= 1.0), (x2, x2 >= width - 2.0)) if not cut]
-    u_all, r_all = scene
-    u_mid = float(np.median(puv[:, 0]))
-    order = ((lo, 1.0, True), (hi, -1.0, False)) if near_lo else ((hi, -1.0, True), (lo, 1.0, False))
-    for face, sign, near in order:
-        at = np.abs(p - face) < FACE_BAND
-        u = float(np.median(puv[at, 0]))
-        rng = float(np.linalg.norm(pxz[at] - sensor_xz, axis=1).min())
-        if any(np.abs(puv[at, 0] - b).min() < tol for b in border):
+    ok = {}
+    for face, near in ((lo, near_lo), (hi, not near_lo)):
+        dist = np.abs(p - face)
+        at = dist <= max(FACE_BAND, dist.min())  # the percentile may fall between sparse returns
+        u = puv[at, 0]
+        if any(np.abs(u - b).min() < tol for b in border):
+            ok[near] = False
             continue
-        out = (u_all - u) * np.sign(u - u_mid)  # > 0: beyond the extreme, away from the object
-        if np.any((out > 0) & (out < OCCLUDER_PX + tol) & (r_all < rng - OCCLUDER_GAP)):
-            continue
-        if near or any(abs(u - s) < tol for s in sides):
-            return face + sign * size / 2
-    return None
+        # reaching a 2D side only proves an end where moving along e moves the image point enough
+        a = pxz[at].mean(axis=0)
+        px_per_m = abs(FOCAL_PX * ((a[0] + e[0]) / (a[1] + e[1]) - a[0] / a[1]))
+        ends = px_per_m * FACE_MAX_SLIDE >= tol and any(np.abs(u - s).min() < tol for s in sides)
+        ok[near] = ends or (near and np.ptp(q[at]) >= FACE_SPREAD * other)
+    near_face, near_sign = (lo, 1.0) if near_lo else (hi, -1.0)
+    far_face, far_sign = (hi, -1.0) if near_lo else (lo, 1.0)
+    if ok[True] and ok[False]:  # both ends shown: the returns measure the size too
+        measured = float(np.ptp(p))
+        if (1 - SHRINK) * size <= measured <= size + grow:
+            return 0.5 * (p.min() + p.max()), 1.0, measured
+        return near_face + near_sign * size / 2, 1.0, size
+    if ok[True]:
+        return near_face + near_sign * size / 2, 1.0, size
+    if ok[False]:
+        return far_face + far_sign * size / 2, 1.0, size
+    # no face confirmed: returns lie on the surfaces facing the sensor, so the likeliest centre is
+    # still half a size beyond the near extreme; a weak row
+    return near_face + near_sign * size / 2, WEAK_FACE, size
 
 
 def _translation(pxz: np.ndarray, puv: np.ndarray, dims: np.ndarray, ry: float, box: Box2D,
                  sensor: np.ndarray, start: np.ndarray, calib: Calibration, image_size,
-                 plane: np.ndarray, cam: int, scene: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
-    """Bottom-centre (x, y, z) by weighted least squares on faces, 2D sides and the road plane."""
+                 plane: np.ndarray, cam: int) -> tuple[np.ndarray, np.ndarray]:
+    """Bottom-centre (x, y, z) by weighted least squares on faces, 2D sides and the road plane,
+    and the size with l and w measured where the returns show both ends."""
     h, w, l = dims
     ea = np.array([np.cos(ry), -np.sin(ry)])  # heading in (x, z)
     eb = np.array([np.sin(ry), np.cos(ry)])   # lateral
@@ -156,15 +177,17 @@ def _translation(pxz: np.ndarray, puv: np.ndarray, dims: np.ndarray, ry: float, 
     ray = start[[0, 2]] - sxz
     ray = ray / max(np.linalg.norm(ray), 1e-9)
     rows, rhs, wts = [], [], []
-    for e, size in ((ea, l), (eb, w)):
-        centre = _faces(pxz, puv, e, size, sxz, box, image_size[0], scene)
-        if centre is not None:
-            rows.append(e)
-            rhs.append(centre)
-            wts.append((0.2 + 0.8 * abs(ray @ e)) / SIGMA_FACE)
+    sizes = []
+    for e, eo, size, other, grow in ((ea, eb, l, w, MAX_GROW_L), (eb, ea, w, l, MAX_GROW_W)):
+        centre, weight, size = _faces(pxz, puv, e, eo, size, other, grow, sxz, box, image_size[0])
+        sizes.append(size)
+        rows.append(e)
+        rhs.append(centre)
+        wts.append(weight * (0.2 + 0.8 * abs(ray @ e)) / SIGMA_FACE)
         rows.append(e)  # weak pull to the returns' centroid: only matters when nothing else binds
         rhs.append(start[[0, 2]] @ e)
         wts.append(1.0 / SIGMA_CENTROID)
+    l, w = sizes
     P = calib.P(cam)
     W = image_size[0]
     n = plane[:3]
@@ -172,8 +195,15 @@ def _translation(pxz: np.ndarray, puv: np.ndarray, dims: np.ndarray, ry: float, 
     def lift_row(r3, r0):  # a row in (x, y, z) -> (x, z) with y on the plane
         return np.array([r3[0] - r3[1] * n[0] / n[1], r3[2] - r3[1] * n[2] / n[1]]), \
             -(r0 - r3[1] * plane[3] / n[1])
-    T = start.copy()
+    A0, b0, w0 = np.array(rows), np.array(rhs), np.array(wts)
+    xz, *_ = np.linalg.lstsq(A0 * w0[:, None], b0 * w0, rcond=None)
     for _ in range(2):
+        # the 2D sides fix the bearing, not the depth: each side's row keeps only its component
+        # across the camera ray (else a few pixels of silhouette-vs-box mismatch, which the LS
+        # would absorb cheaply along the ray, pull the box by a metre in depth)
+        y = -(n[0] * xz[0] + n[2] * xz[1] + plane[3]) / n[1]
+        T = np.array([xz[0], y, xz[1]])
+        r = xz / max(np.linalg.norm(xz), 1e-9)
         offs = box_corners(np.array([[0, 0, 0, h, w, l, ry]]))[0]
         uv, _ = calib.rect_to_image(offs + T, cam)
         extra_rows, extra_rhs, extra_w = [], [], []
@@ -181,18 +211,18 @@ def _translation(pxz: np.ndarray, puv: np.ndarray, dims: np.ndarray, ry: float, 
                              (box.bbox[2], np.argmax(uv[:, 0]), box.bbox[2] >= W - 2.0)):
             if cut:
                 continue
-            r = P[0] - u * P[2]
-            a2, b2 = lift_row(r[:3], r[3] + r[:3] @ offs[pick])
-            extra_rows.append(a2 / P[0, 0])
-            extra_rhs.append(b2 / P[0, 0])
+            pr = P[0] - u * P[2]
+            a2, b2 = lift_row(pr[:3], pr[3] + pr[:3] @ offs[pick])
+            along = a2 @ r
+            extra_rows.append((a2 - along * r) / P[0, 0])
+            extra_rhs.append((b2 - along * (r @ xz)) / P[0, 0])
             extra_w.append(1.0 / SIGMA_IMAGE)
-        A = np.array(rows + extra_rows)
-        b = np.array(rhs + extra_rhs)
-        wv = np.array(wts + extra_w)
+        A = np.vstack([A0] + [np.array(extra_rows)] * bool(extra_rows))
+        b = np.concatenate([b0, extra_rhs])
+        wv = np.concatenate([w0, extra_w])
         xz, *_ = np.linalg.lstsq(A * wv[:, None], b * wv, rcond=None)
-        y = -(n[0] * xz[0] + n[2] * xz[1] + plane[3]) / n[1]
-        T = np.array([xz[0], y, xz[1]])
-    return T
+    y = -(n[0] * xz[0] + n[2] * xz[1] + plane[3]) / n[1]
+    return np.array([xz[0], y, xz[1]]), np.array([h, w, l])
 
 
 def _merge(xz: np.ndarray, labels: np.ndarray, seed: int, diag: float) -> np.ndarray:
@@ -236,20 +266,25 @@ def lift_fit(boxes: list[Box2D], priors: list[Prior], pts: FramePoints, calib: C
         if box.bbox[3] >= image_size[1] - 2.0:  # bottom cut by the border: the road depth only bounds
             sigma = max(sigma, road_d[i])
         diag = np.hypot(l, w)
+        rng_all = np.linalg.norm(xz - pts.sensor[[0, 2]], axis=1)
+        u_all = pts.uv[cand, 0]
+
+        def score(m: np.ndarray) -> float:
+            coverage = min(1.0, np.ptp(u_all[m]) / width)
+            gap = rng_all[m].min() - road_d[i]
+            return (coverage + 0.05) * min(1.0, m.sum() / 10) * np.exp(-0.5 * (gap / sigma) ** 2)
+
+        counts = np.bincount(labels)
+        seeds = [k for k in np.flatnonzero(counts >= MIN_SEED)]
+        seeds = sorted(seeds, key=lambda k: -score(labels == k))[:MAX_SEEDS]
         best, best_score = None, 0.0
-        for k in range(labels.max() + 1):
-            if (labels == k).sum() < MIN_SEED:
-                continue
+        for k in seeds:  # the likeliest clusters, each grown by its car-sized neighbours
             m = _merge(cells, cell_labels, k, diag)[inverse]
             if m.sum() < MIN_POINTS:
                 continue
-            u = pts.uv[cand[m], 0]
-            coverage = min(1.0, (u.max() - u.min()) / width)
-            dist = np.linalg.norm(xz[m] - pts.sensor[[0, 2]], axis=1)
-            gap = dist.min() - road_d[i]
-            score = (coverage + 0.05) * min(1.0, m.sum() / 10) * np.exp(-0.5 * (gap / sigma) ** 2)
-            if score > best_score:
-                best, best_score = m, score
+            sc = score(m)
+            if sc > best_score:
+                best, best_score = m, sc
         if best is None or best_score < 0.02:
             out[i] = _fallback(box, prior, calib, image_size, plane, cam)
             continue
@@ -263,16 +298,17 @@ def lift_fit(boxes: list[Box2D], priors: list[Prior], pts: FramePoints, calib: C
         eb = np.array([np.sin(ry), np.cos(ry)])
         ext_a = np.subtract(*np.percentile(rowdot(oxz, ea), [98.0, 2.0]))
         ext_b = np.subtract(*np.percentile(rowdot(oxz, eb), [98.0, 2.0]))
-        if not small:
-            l, w = max(l, ext_a), max(w, ext_b)
+        if not small:  # grow to hold the returns, unless they clearly hold something else too
+            l = ext_a if l < ext_a <= l + MAX_GROW_L else l
+            w = ext_b if w < ext_b <= w + MAX_GROW_W else w
         h = max(h, float(pts.height[obj].max()))  # roof returns lie a little below the top
         dims = np.array([h, w, l])
         start_xz = centroid
         start_y = -(plane[0] * start_xz[0] + plane[2] * start_xz[1] + plane[3]) / plane[1]
         start = np.array([start_xz[0], start_y, start_xz[1]])
-        scene = (pts.uv[inbox, 0], np.linalg.norm(pts.rect[inbox][:, [0, 2]] - pts.sensor[[0, 2]], axis=1))
-        T = _translation(oxz, pts.uv[obj], dims, ry, box, pts.sensor, start, calib, image_size,
-                         plane, cam, scene)
+        T, dims = _translation(oxz, pts.uv[obj], dims, ry, box, pts.sensor, start, calib,
+                               image_size, plane, cam)
+        h, w, l = dims
         # claim this object's returns so a farther box does not take them as its own
         grown = np.array([[T[0], T[1] + CLAIM_MARGIN, T[2], h + 2 * CLAIM_MARGIN,
                            w + 2 * CLAIM_MARGIN, l + 2 * CLAIM_MARGIN, ry]])

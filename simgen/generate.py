@@ -80,11 +80,14 @@ def decode_depth(png16: np.ndarray) -> np.ndarray:
 
 
 def _lidar_api():
+    """simgen.lidar, and the scan seed its `testbed rescan` uses too (a rescan with the same
+    sensor then reproduces the frame's scan bit for bit)."""
     try:
         from . import lidar
+        from .lidar.dataset import lidar_seed
     except ImportError as e:
         raise RuntimeError(f"the LiDAR simulation (simgen.lidar) cannot be imported: {e}") from None
-    return lidar
+    return lidar, lidar_seed
 
 
 def make_frame(job: Job) -> str:
@@ -104,10 +107,8 @@ def make_frame(job: Job) -> str:
     counts = None
     lidar_info = None
     if job.lidar is not None:
-        lidar = _lidar_api()
+        lidar, lidar_seed = _lidar_api()
         lspec = lidar.preset(job.lidar.preset, beams=job.lidar.beams, max_range=job.lidar.max_range)
-        from .lidar.dataset import lidar_seed  # the seed `testbed rescan` uses too
-
         scan = lidar.scan(world, lspec, lidar_seed(job.seed, job.index))
         lidar.write_scan(training, fid, scan)
         counts = scan.point_counts()

@@ -5,7 +5,8 @@ Per actor:
   in image_2 pixels (pixel centres at integer coordinates, as in KITTI);
 - 2D box: the bounds of the silhouette clipped to the image [-0.5, W-0.5] x [-0.5, H-0.5],
   then clamped to pixel indices [0, W-1] x [0, H-1];
-- truncation: the share of the silhouette's area outside the image (the mesh, not the box);
+- truncation: the share of the silhouette's area outside the image (the mesh, not the box); an
+  object reaching behind the camera plane projects without bound, so its truncation is ~1;
 - visible share: the actor's instance-mask pixels over the area of its silhouette inside the
   image (what it would cover with nothing in front of it); capped at 1;
 - occlusion: 0 if visible share >= `occlusion_partly_below` (default 0.8), 1 if >= 

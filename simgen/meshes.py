@@ -219,13 +219,13 @@ def _person(rng, clothes: Material, skin: Material, stride: float, lean: float =
     for s in (-1, 1):
         top = shoulder + [0, s * 0.21, -0.02]
         if sitting_on_bike:
-            hand = np.array([0.55, s * 0.20, 0.70])
+            hand = np.array([0.42, s * 0.20, 0.66])  # on the handlebar
         else:
             hand = top + [-s * stride * 0.3, s * 0.03, -0.33]
         parts.append(Part(_limb(top, hand, 0.035), clothes))
     head = trimesh.creation.icosphere(subdivisions=1, radius=0.07)
     head.apply_scale([1.0, 0.85, 1.15])
-    head.apply_translation(shoulder + [0.01, 0, 0.125])
+    head.apply_translation(shoulder + [0.01, 0, 0.09])
     parts.append(Part(head, skin))
     return parts
 

@@ -38,7 +38,8 @@ SUN_POWER = {"day": 4.0, "dusk": 2.0, "night": 0.08}
 
 # Thermal emulation ("white hot", 0..1): a temperature per material; moving vehicles run warm.
 TEMPERATURE = {"asphalt": 0.42, "marking": 0.40, "curb": 0.38, "sidewalk": 0.38, "verge": 0.30,
-               "facade": 0.33, "bark": 0.30, "foliage": 0.24, "pole": 0.28, "fence": 0.30,
+               "sand": 0.55, "forest_floor": 0.27, "facade": 0.33, "bark": 0.30, "foliage": 0.24,
+               "pole": 0.28, "fence": 0.30,
                "paint": 0.45, "glass": 0.28, "tyre": 0.55, "plate": 0.42, "headlight": 0.80,
                "taillight": 0.70, "bike_frame": 0.40, "skin": 0.97, "clothes": 0.78, "user": 0.50}
 _WARM_WHEN_MOVING = {"tyre": 0.30, "paint": 0.10}
@@ -63,12 +64,13 @@ class _ExactCamera(pyrender.IntrinsicsCamera):
         return super().get_projection_matrix(width, height) @ self.residual_gl
 
 
-_RENDERERS: dict[tuple[int, int], pyrender.OffscreenRenderer] = {}
+_RENDERERS: dict[tuple[int, int, int], pyrender.OffscreenRenderer] = {}
 
 
 def renderer(width: int, height: int) -> pyrender.OffscreenRenderer:
-    """The process's renderer for this image size, created once."""
-    key = (width, height)
+    """The process's renderer for this image size, created once. Keyed by process id too: a
+    forked child must not reuse its parent's GL context."""
+    key = (os.getpid(), width, height)
     if key not in _RENDERERS:
         _RENDERERS[key] = pyrender.OffscreenRenderer(width, height)
     return _RENDERERS[key]

@@ -13,7 +13,7 @@ import shapely
 
 from .factors import factor_rng
 from .meshes import build_actor_parts, sample_recipe
-from .rigs import gantry_rig, onboard_rig, orbit_rig
+from .rigs import CameraRig, gantry_rig, onboard_rig, orbit_rig
 from .road import RoadLayout
 from .scenery import Obstacle, build_scenery
 from .spec import SceneSpec
@@ -22,7 +22,8 @@ from .world import Actor, Light, Weather, World
 
 MARGIN = 0.3  # metres of free space kept around every actor footprint
 VERGE_REACH = 60.0  # cross-street traffic runs from -60 to 60 m across the main road
-EGO_FOOTPRINT = shapely.box(-2.9, -1.0, 1.3, 1.0)  # KITTI's VW Passat around its LiDAR
+# KITTI's VW Passat around its LiDAR (x -2.9 to 1.3 m), plus 5 m of free lane ahead of its bumper.
+EGO_FOOTPRINT = shapely.box(-2.9, -1.0, 6.3, 1.0)
 
 
 def _values(spec: SceneSpec, seed: int, frame: int) -> dict:
@@ -80,20 +81,43 @@ def _pick_class(mix: dict[str, float], rng: np.random.Generator) -> str:
     return names[int(rng.choice(len(names), p=p / p.sum()))]
 
 
-def sample_world(spec: SceneSpec, seed: int, frame_index: int) -> World:
-    v = _values(spec, seed, frame_index)
-    rig_spec = spec.rig
+def _road_layout(spec: SceneSpec, v: dict) -> RoadLayout:
     lanes = int(v["road.lanes_per_direction"])
-    tr_max = float(v["traffic.max_distance"])
-    road = RoadLayout(
-        curvature=float(v["road.curvature"]) if v["road.type"] == "curved" else 0.0,
+    kind = v["road.type"]
+    return RoadLayout(
+        curvature=float(v["road.curvature"]) if kind == "curved" else 0.0,
         lanes=lanes, lane_width=float(v["road.lane_width"]),
         ego_lane=min(int(v["road.ego_lane"]), lanes - 1),
         sidewalk_width=float(v["road.sidewalk_width"]), curb_height=float(v["road.curb_height"]),
         parking=float(v["traffic.parked_per_100m"]) > 0,
-        s_min=-spec.road.length_behind, s_max=max(spec.road.length_ahead, tr_max + 20.0),
-        cross_s=float(v["road.intersection_distance"]) if v["road.type"] == "intersection" else None,
-        cross_lanes=int(v["road.cross_lanes_per_direction"]) if v["road.type"] == "intersection" else 0)
+        s_min=-spec.road.length_behind,
+        s_max=max(spec.road.length_ahead, float(v["traffic.max_distance"]) + 20.0),
+        cross_s=float(v["road.intersection_distance"]) if kind == "intersection" else None,
+        cross_lanes=int(v["road.cross_lanes_per_direction"]) if kind == "intersection" else 0)
+
+
+def _make_rig(spec: SceneSpec, v: dict, road: RoadLayout, actors: list[Actor]) -> CameraRig:
+    rs = spec.rig
+    if rs.type == "onboard":
+        return onboard_rig()
+    if rs.type == "gantry":  # over the road at s = 0, `lateral` metres left of the divider
+        d = road.divider + float(v["rig.lateral"])
+        return gantry_rig(float(v["rig.cam_height"]), float(v["rig.pan_deg"]), float(v["rig.tilt_deg"]),
+                          float(v["rig.focal_px"]), tuple(road.xy(0.0, d)), rs.image_width,
+                          rs.image_height)
+    h = actors[0].recipe["dims"][0]  # the orbit target, actor 1, at the origin
+    return orbit_rig(np.array([0.0, 0.0, h / 2]), float(v["rig.distance"]),
+                     float(v["rig.elevation_deg"]), float(v["rig.azimuth_deg"]),
+                     float(v["rig.focal_px"]), rs.image_width, rs.image_height)
+
+
+def sample_world(spec: SceneSpec, seed: int, frame_index: int) -> World:
+    """The world of one frame: a pure function of the spec, the seed and the frame index."""
+    v = _values(spec, seed, frame_index)
+    rig_spec = spec.rig
+    road = _road_layout(spec, v)
+    lanes = road.lanes
+    tr_max = float(v["traffic.max_distance"])
     scenery = {"road": road.to_dict(),
                "clutter": {k.split(".", 1)[1]: v[k] for k in v if k.startswith("clutter.")},
                "seed": int(factor_rng(seed, frame_index, "scenery").integers(2**31))}
@@ -203,25 +227,13 @@ def sample_world(spec: SceneSpec, seed: int, frame_index: int) -> World:
             add("Cyclist", recipe, road.pose(s, d, 0.0, yaw), vel,
                 (-1.0 if oncoming else 1.0) * vel * road.curvature)
 
-    ego_velocity = np.zeros(3)
-    if rig_spec.type == "onboard":
-        rig = onboard_rig()
-        ego_velocity = np.array([float(v["rig.ego_speed"]), 0.0, 0.0])
-    elif rig_spec.type == "gantry":
-        d = road.divider + float(v["rig.lateral"])
-        rig = gantry_rig(float(v["rig.cam_height"]), float(v["rig.pan_deg"]), float(v["rig.tilt_deg"]),
-                         float(v["rig.focal_px"]), tuple(road.xy(0.0, d)), rig_spec.image_width,
-                         rig_spec.image_height)
-    else:
-        h = actors[0].recipe["dims"][0]
-        rig = orbit_rig(np.array([0.0, 0.0, h / 2]), float(v["rig.distance"]),
-                        float(v["rig.elevation_deg"]), float(v["rig.azimuth_deg"]),
-                        float(v["rig.focal_px"]), rig_spec.image_width, rig_spec.image_height)
+    rig = _make_rig(spec, v, road, actors)
+    ego_velocity = np.array([float(v["rig.ego_speed"]), 0.0, 0.0]) if rig.kind == "onboard" else np.zeros(3)
     light = Light(v["light.time"], float(v["light.sun_intensity"]),
                   float(v["light.sun_elevation_deg"]), float(v["light.sun_azimuth_deg"]))
     weather = Weather(float(v["weather.fog_extinction"]), float(v["weather.rain_rate"]),
                       float(v["weather.wind"]))
-    return World(actors=actors, static=[p for p in static], weather=weather,
+    return World(actors=actors, static=static, weather=weather,
                  lidar_pose=rig.reference_pose.copy(), ego_velocity=ego_velocity, rig=rig,
                  light=light, sensor=str(v["sensor"]), scenery=scenery, seed=int(seed),
                  frame_index=int(frame_index))

@@ -18,13 +18,19 @@ ASPHALT = Material("asphalt", (0.09, 0.09, 0.10), 0.10)
 MARKING = Material("marking", (0.85, 0.85, 0.82), 0.60)
 CONCRETE = Material("curb", (0.45, 0.45, 0.43), 0.35)
 SIDEWALK = Material("sidewalk", (0.32, 0.31, 0.30), 0.30)
-VERGE = Material("verge", (0.14, 0.20, 0.08), 0.40)
+VERGE = Material("verge", (0.14, 0.20, 0.08), 0.40)  # grass
+FOREST_FLOOR = Material("forest_floor", (0.09, 0.07, 0.04), 0.30)
+SAND = Material("sand", (0.62, 0.52, 0.36), 0.50)
 BARK = Material("bark", (0.12, 0.08, 0.05), 0.20)
 FOLIAGE = Material("foliage", (0.08, 0.20, 0.06), 0.45)
 METAL = Material("pole", (0.30, 0.31, 0.33), 0.40)
 FENCE = Material("fence", (0.35, 0.30, 0.25), 0.30)
 _FACADES = [(0.55, 0.50, 0.42), (0.40, 0.30, 0.25), (0.60, 0.58, 0.55), (0.35, 0.36, 0.40),
             (0.65, 0.55, 0.40), (0.30, 0.25, 0.22)]
+# 003's scene types: the ground beside the road, whether buildings may stand, the tree density
+# multiplier along the sidewalk and the density of woods (trees per 100 m in a 25 m deep band).
+ENVIRONMENTS = {"city": (VERGE, True, 1.0, 0.0), "grass": (VERGE, False, 0.5, 0.0),
+                "forest": (FOREST_FLOOR, False, 1.0, 40.0), "desert": (SAND, False, 0.0, 0.0)}
 MARK_Z = 0.01  # markings sit 1 cm above the asphalt so no renderer z-fights them
 VERGE_WIDTH = 60.0
 
@@ -120,6 +126,7 @@ def build_scenery(params: dict) -> tuple[list[Part], list[Obstacle]]:
     """
     road = RoadLayout(**params["road"])
     clutter = params["clutter"]
+    ground, buildings, tree_factor, woods = ENVIRONMENTS[clutter.get("environment", "city")]
     rng = np.random.default_rng(params["seed"])
     s = road.samples(road.s_min, road.s_max)
     by_mat: dict[Material, list[trimesh.Trimesh]] = {}
@@ -148,7 +155,7 @@ def build_scenery(params: dict) -> tuple[list[Part], list[Obstacle]]:
             add(CONCRETE, face if side < 0 else _flip(face))
         vlo, vhi = sorted((outer, outer + side * VERGE_WIDTH))
         for s0, s1 in _spans(road, sw):
-            add(VERGE, _strip(road, road.samples(s0, s1), vlo, vhi, ch))
+            add(ground, _strip(road, road.samples(s0, s1), vlo, vhi, ch))
     # Markings: solid edge lines and divider, dashed lines between lanes of one direction.
     w = 0.15
     spans = _spans(road, 0.0)
@@ -172,7 +179,7 @@ def build_scenery(params: dict) -> tuple[list[Part], list[Obstacle]]:
     for side in (-1, 1):
         curb = road.right_curb if side < 0 else road.left_curb
         outer = curb + side * sw
-        if clutter["buildings"]:
+        if clutter["buildings"] and buildings:
             sb = road.s_min - 10.0
             while sb < road.s_max + 10.0:
                 length = rng.uniform(8.0, 30.0)
@@ -188,9 +195,13 @@ def build_scenery(params: dict) -> tuple[list[Part], list[Obstacle]]:
             for s0, s1 in _spans(road, sw):
                 m = _strip(road, road.samples(s0, s1), outer - side * 0.3, outer - side * 0.3, ch, ch + 1.2)
                 add(FENCE, m if side < 0 else _flip(m))
-        n_trees = rng.poisson(clutter["trees_per_100m"] * (road.s_max - road.s_min) / 100.0)
-        for st in np.sort(rng.uniform(road.s_min, road.s_max, n_trees)):
-            d = outer - side * min(1.0, sw / 2)
+        n_trees = rng.poisson(tree_factor * clutter["trees_per_100m"] * (road.s_max - road.s_min) / 100.0)
+        n_woods = rng.poisson(woods * (road.s_max - road.s_min) / 100.0)
+        sidewalk_d = outer - side * min(1.0, sw / 2)
+        spots = [(st, sidewalk_d) for st in np.sort(rng.uniform(road.s_min, road.s_max, n_trees))]
+        spots += [(st, outer + side * rng.uniform(3.0, 28.0))
+                  for st in np.sort(rng.uniform(road.s_min, road.s_max, n_woods))]
+        for st, d in spots:
             trunk_h, r = rng.uniform(2.0, 3.0), rng.uniform(1.0, 2.0)
             x, y = road.xy(st, d)
             trunk = trimesh.creation.cylinder(radius=0.15, height=trunk_h, sections=8)

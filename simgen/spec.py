@@ -72,6 +72,8 @@ class TrafficSpec(Strict):
 
 
 class ClutterSpec(Strict):
+    # 003's scene types: city (buildings), grass, forest (woods beside the road), desert (sand).
+    environment: factor(str, options=("city", "grass", "forest", "desert")) = "city"
     buildings: bool = True
     building_setback: factor(float, 0.0, 30.0) = 1.0  # metres behind the sidewalk
     trees_per_100m: factor(float, 0.0, 40.0) = 4.0  # per side

@@ -11,7 +11,7 @@ import click
 @click.option("--data", required=True, type=click.Path(exists=True, file_okay=False, path_type=Path),
               help="KITTI-format dataset root.")
 @click.option("--boxes", required=True,
-              help="'gt' (the label_2 boxes of Car/Pedestrian/Cyclist, oracle) or a folder of "
+              help="'gt' (the label_2 boxes of the road users, oracle) or a folder of "
                    "detection result files (testbed detect).")
 @click.option("--method", required=True, type=click.Choice(["frustum", "fit", "mono", "roadside"]))
 @click.option("--split", default=None, help="ImageSets/<split>.txt [default: every frame].")

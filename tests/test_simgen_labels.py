@@ -1,4 +1,5 @@
-"""Labels against geometry: 2D boxes, occlusion, truncation, angles, depth, plane."""
+"""Labels against geometry, on small worlds built by hand: 2D boxes, occlusion, truncation,
+angles, depth, the road plane."""
 
 from __future__ import annotations
 
@@ -8,9 +9,35 @@ from scipy.optimize import brentq
 
 from kitti.boxes import alpha_from_rotation_y, box_corners, wrap_angle
 from simgen.labels import derive
+from simgen.meshes import build_actor_parts
 from simgen.render import render
+from simgen.rigs import onboard_rig
 from simgen.spec import LabelRules
-from simgen_helpers import CAR, mask_box, pose, world_of
+from simgen.world import Actor, Light, Weather, World
+
+CAR = {"kind": "car", "dims": [1.53, 1.63, 3.88], "color": [0.55, 0.04, 0.03], "seed": 7}
+
+
+def pose(x: float, y: float, yaw: float = 0.0, z: float = 0.0) -> np.ndarray:
+    c, s = np.cos(yaw), np.sin(yaw)
+    T = np.eye(4)
+    T[:3, :3] = [[c, -s, 0], [s, c, 0], [0, 0, 1]]
+    T[:3, 3] = [x, y, z]
+    return T
+
+
+def world_of(placements: list[tuple[dict, np.ndarray]], cls: str = "Car") -> World:
+    """Actors (recipe, pose) on the KITTI onboard rig, no static scenery, plain daylight."""
+    rig = onboard_rig()
+    actors = [Actor(i + 1, cls, build_actor_parts(r), p, recipe=r) for i, (r, p) in enumerate(placements)]
+    return World(actors=actors, static=[], weather=Weather(), lidar_pose=rig.reference_pose.copy(),
+                 rig=rig, light=Light())
+
+
+def mask_box(instance: np.ndarray, actor_id: int) -> np.ndarray:
+    ys, xs = np.nonzero(instance == actor_id)
+    return np.array([xs.min(), ys.min(), xs.max(), ys.max()], float)
+
 
 RULES = LabelRules(min_height_px=0, max_distance=1000, min_visible_share=0.0)
 
@@ -113,10 +140,11 @@ def test_depth_of_road_pixels_matches_the_ray_plane_intersection():
         assert out.instance[v, u] == 0
 
 
-def test_convex_part_silhouette_equals_the_union_of_projected_triangles():
+@pytest.mark.parametrize("x,y,yaw", [(6.0, 1.5, 0.7), (0.5, -3.0, 0.0)])  # 2nd: cut by the near plane
+def test_convex_part_silhouette_equals_the_union_of_projected_triangles(x, y, yaw):
     from simgen.labels import silhouette
 
-    world = world_of([(CAR, pose(6.0, 1.5, 0.7))])
+    world = world_of([(CAR, pose(x, y, yaw))])
     actor = world.actors[0]
     cam, K = world.rig.cam2_from_world(), world.rig.intrinsics()
     fast = silhouette(actor, cam, K)
@@ -129,7 +157,6 @@ def test_convex_part_silhouette_equals_the_union_of_projected_triangles():
 def test_user_mesh_actor_is_labelled_from_its_own_geometry(tmp_path):
     import trimesh
 
-    from simgen.meshes import build_actor_parts
     from simgen.usermesh import user_recipe
 
     # A non-convex mesh: two boxes in an L, written as OBJ.
@@ -144,3 +171,13 @@ def test_user_mesh_actor_is_labelled_from_its_own_geometry(tmp_path):
     assert row.type == "Misc" and (row.h, row.w, row.l) == pytest.approx((2.0, 1.0, 4.0))
     np.testing.assert_allclose(row.bbox, mask_box(out.instance, 1), atol=1.0)
     assert t.visible_share > 0.95 and row.occluded == 0
+
+
+def test_car_beside_the_camera_is_cut_at_the_near_plane_and_truncated():
+    world = world_of([(CAR, pose(2.2, -2.2))])  # its rear is behind the camera plane
+    out, rows, t = _label(world)
+    (row,) = rows
+    # Cut at a 5 cm near plane, the part beside the camera projects far outside the image.
+    assert t.truncation > 0.9 and row.bbox[2] == world.rig.width - 1
+    # A box edge can sit on a pixel centre; the GPU's float32 vertices decide it (1e-3 px here).
+    np.testing.assert_allclose(row.bbox, mask_box(out.instance, 1), atol=1.01)
