@@ -1,7 +1,8 @@
 """Camera rigs: where the camera is, as a KITTI Calibration plus a world-from-reference pose.
 
 The reference frame of every rig is KITTI's "velodyne" frame (x forward, y left, z up):
-- onboard: the real KITTI calibration; the LiDAR 1.73 m above the road, axes along the world's.
+- onboard: KITTI's intrinsics and R0_rect, levelled extrinsics (levelled_kitti_calibration); the
+  LiDAR 1.73 m above the road, axes along the world's.
 - gantry (004): a camera at height h looking along the road, pan theta, tilt phi, one focal
   length f, principal point at the image centre; R = Rx(phi) Rz(theta) in 004's frame
   (x right, y along the road, z up), i.e. rows (cos t, -sin t, 0), (-sin p sin t, -sin p cos t,
@@ -63,12 +64,34 @@ class CameraRig:
         return p / np.linalg.norm(p[:3])
 
 
-def onboard_rig() -> CameraRig:
+# LiDAR (x forward, y left, z up) to rectified camera (x right, y down, z forward) axes.
+_VELO_TO_RECT_AXES = np.array([[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])
+
+
+def levelled_kitti_calibration() -> Calibration:
+    """KITTI's calibration with the rectified camera exactly level with the LiDAR.
+
+    The real Tr_velo_to_cam tilts the rectified camera about 0.85 deg from the LiDAR's vertical, so
+    upright actors would not fit KITTI's yaw-only label boxes exactly (about 2 cm at a car's top).
+    Here P0-P3 and R0_rect are KITTI's own (R0_rect stays non-identity) and Tr_velo_to_cam is
+    R0_rect^-1 [A | R0_rect t], with A the pure axis swap and t KITTI's translation: the rectified
+    camera sits where KITTI's does, and world vertical is exactly its -y axis.
+    """
+    real = Calibration.kitti_default()
+    r0_inv = np.linalg.inv(real.R0_rect)
+    t_rect = real.R0_rect @ real.Tr_velo_to_cam[:, 3]
+    tr = r0_inv @ np.c_[_VELO_TO_RECT_AXES, t_rect]
+    return Calibration(real.P0, real.P1, real.P2, real.P3, real.R0_rect, tr, real.Tr_imu_to_velo)
+
+
+def onboard_rig(lidar_mount: tuple[float, float, float] = (0.0, 0.0, KITTI_LIDAR_HEIGHT)) -> CameraRig:
+    """KITTI's car: the LiDAR at `lidar_mount` (world, above the road under the ego origin), the
+    camera where the calibration puts it relative to the LiDAR."""
     ref = np.eye(4)
-    ref[2, 3] = KITTI_LIDAR_HEIGHT
+    ref[:3, 3] = lidar_mount
     w, h = KITTI_IMAGE_SIZE
-    return CameraRig("onboard", Calibration.kitti_default(), w, h, ref,
-                     {"lidar_height": KITTI_LIDAR_HEIGHT})
+    return CameraRig("onboard", levelled_kitti_calibration(), w, h, ref,
+                     {"lidar_height": float(lidar_mount[2])})
 
 
 def pinhole_calibration(R_cam_from_ref: np.ndarray, focal: float, width: int, height: int) -> Calibration:

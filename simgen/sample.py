@@ -13,7 +13,7 @@ import shapely
 
 from .factors import factor_rng
 from .meshes import build_actor_parts, sample_recipe
-from .rigs import CameraRig, gantry_rig, onboard_rig, orbit_rig
+from .rigs import KITTI_LIDAR_HEIGHT, CameraRig, gantry_rig, onboard_rig, orbit_rig
 from .road import RoadLayout
 from .scenery import Obstacle, build_scenery
 from .spec import SceneSpec
@@ -98,8 +98,11 @@ def _road_layout(spec: SceneSpec, v: dict) -> RoadLayout:
 
 def _make_rig(spec: SceneSpec, v: dict, road: RoadLayout, actors: list[Actor]) -> CameraRig:
     rs = spec.rig
-    if rs.type == "onboard":
-        return onboard_rig()
+    if rs.type == "onboard":  # the LiDAR's mount (its spec) places the rig; the camera follows it
+        from .lidar import preset
+
+        mount = (0.0, 0.0, KITTI_LIDAR_HEIGHT) if spec.lidar is None else preset(spec.lidar.preset).mount_xyz
+        return onboard_rig(mount)
     if rs.type == "gantry":  # over the road at s = 0, `lateral` metres left of the divider
         d = road.divider + float(v["rig.lateral"])
         return gantry_rig(float(v["rig.cam_height"]), float(v["rig.pan_deg"]), float(v["rig.tilt_deg"]),

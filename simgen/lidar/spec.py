@@ -47,9 +47,9 @@ class LidarSpec:
     rotation_hz: float = 10.0
     min_range: float = 0.9
     max_range: float = 120.0
-    # vehicle-from-LiDAR mount (x fwd, y left, z up from the road under the rear axle); the
-    # scene generator uses it to place the sensor. scan() uses world.lidar_pose, so a rescan
-    # keeps the recorded pose and with it the calibration.
+    # vehicle-from-LiDAR mount (x fwd, y left, z up from the road under the ego origin): the
+    # scene generator places the onboard rig with it (simgen.sample). scan() uses
+    # world.lidar_pose, so a rescan keeps the recorded pose and with it the calibration.
     mount_xyz: tuple[float, float, float] = (0.0, 0.0, 1.73)
     noise_sigma: float = 0.015  # per-ray Gaussian range noise (m)
     bias_sigma: float = 0.01  # fixed per-laser range bias (m), drawn once per sensor unit

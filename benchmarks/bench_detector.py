@@ -1,0 +1,77 @@
+"""FlexiNet CPU figures: milliseconds per 1242x375 image at the weights' inference size, and the
+training time a run needed to reach a Car 2D AP|R40 moderate target (from its history.csv).
+
+    .venv/bin/python benchmarks/bench_detector.py [--weights W] [--threads 2] [--runs 30]
+                                                  [--history runs/det_main/history.csv] [--target 90]
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import statistics
+import time
+
+import numpy as np
+import torch
+
+from detector.boxes import Letterbox
+from detector.infer import DEFAULT_WEIGHTS, Detector
+from detector.model import count_parameters
+from detector.nms import postprocess
+
+
+def time_inference(det: Detector, runs: int, rng: np.random.Generator) -> dict[str, float]:
+    img = rng.integers(0, 256, size=(375, 1242, 3), dtype=np.uint8)
+    lb = Letterbox.fit(1242, 375, *det.input_size)
+    x = torch.from_numpy(lb.apply(img)[None]).permute(0, 3, 1, 2).float().div_(255)
+    for _ in range(3):
+        det.detect([img])
+    net, full = [], []
+    with torch.no_grad():
+        for _ in range(runs):
+            t0 = time.perf_counter()
+            raw = det.model.predict_raw(x)
+            net.append(time.perf_counter() - t0)
+            postprocess(raw)
+            t0 = time.perf_counter()
+            det.detect([img])
+            full.append(time.perf_counter() - t0)
+    return {"network_ms": 1000 * statistics.median(net), "end_to_end_ms": 1000 * statistics.median(full)}
+
+
+def time_to_target(history: str, target: float) -> str:
+    rows = list(csv.DictReader(open(history)))
+    elapsed = 0.0
+    for r in rows:
+        elapsed += float(r["seconds"])
+        ap = r.get("Car_2d_R40_moderate") or ""
+        if ap and float(ap) >= target:
+            return (f"Car 2D AP|R40 moderate >= {target} first at epoch {r['epoch']} "
+                    f"({float(ap):.2f}) after {elapsed / 60:.1f} min of training (evaluations included)")
+    last = [r for r in rows if r.get("Car_2d_R40_moderate")]
+    best = max((float(r["Car_2d_R40_moderate"]) for r in last), default=float("nan"))
+    return f"target {target} not reached in {len(rows)} epochs ({elapsed / 60:.1f} min); best {best:.2f}"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--weights", default=str(DEFAULT_WEIGHTS))
+    ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--runs", type=int, default=30)
+    ap.add_argument("--history", default=None, help="history.csv of a training run")
+    ap.add_argument("--target", type=float, default=90.0)
+    a = ap.parse_args()
+    torch.set_num_threads(a.threads)
+    det = Detector.load(a.weights)
+    w, h = det.input_size
+    t = time_inference(det, a.runs, np.random.default_rng(0))
+    print(f"weights {a.weights}: {count_parameters(det.model) / 1e6:.2f} M parameters (BN folded), "
+          f"input {w}x{h}, {a.threads} thread(s), median of {a.runs}")
+    print(f"  network forward:                    {t['network_ms']:.1f} ms per 1242x375 image")
+    print(f"  letterbox + network + NMS + mapping: {t['end_to_end_ms']:.1f} ms per 1242x375 image")
+    if a.history:
+        print("  " + time_to_target(a.history, a.target))
+
+
+if __name__ == "__main__":
+    main()
