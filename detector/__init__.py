@@ -1,0 +1,2 @@
+"""FlexiNet 2D detector (thesis 000): model, anchors, losses, NMS, augmentation (mosaic and the
+two Mixup variants of 004), training and inference on any KITTI-format dataset."""

@@ -140,36 +140,8 @@ def range_table(rows: list[dict], cls: str, metric: str, boxes: str) -> str:
     return "\n".join(out)
 
 
-def plot_ap_vs_range(rows: list[dict], cls: str, metric: str, path: Path) -> None:
-    """One panel per method x boxes, one line per LiDAR configuration."""
-    sel = [r for r in rows if r["class"] == cls and r["metric"] == metric and r["iou"] == "strict"
-           and r["difficulty"] == "moderate" and r["range_m"] != "all"]
-    panels = list(dict.fromkeys((r["method"], r["boxes"]) for r in sel))
-    if not panels:
-        return
-    fig, axes = plt.subplots(1, len(panels), figsize=(4.2 * len(panels), 3.4), squeeze=False,
-                             sharey=True)
-    for ax, (method, boxes) in zip(axes[0], panels):
-        lines = defaultdict(list)
-        for r in sel:
-            if (r["method"], r["boxes"]) == (method, boxes) and r["ap_r40"] and int(r["n_gt"]) > 0:
-                lo = float(r["range_m"].split("-")[0].rstrip("+"))
-                lines[_config_label(r)].append((lo, float(r["ap_r40"])))
-        for label, pts in lines.items():
-            pts.sort()
-            ax.plot([p[0] for p in pts], [p[1] for p in pts], marker="o", ms=3, label=label)
-        ax.set_title(f"{method}, {boxes} boxes", fontsize=9)
-        ax.set_xlabel("distance bin start (m)")
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=6)
-    axes[0][0].set_ylabel(f"{cls} {metric.upper()} AP|R40 moderate")
-    axes[0][0].set_ylim(0, 102)
-    _save(fig, path)
-
-
-def plot_errors_vs_range(err: list[dict], cls: str, path: Path, match: str = "centre") -> None:
-    sel = [r for r in err if r["class"] == cls and r["range_m"] != "all" and r["match"] == match
-           and r["centre_median"]]
+def _plot_by_range(sel: list[dict], value: str, ylabel: str, path: Path, ylim=None) -> None:
+    """One panel per method x boxes, one line per LiDAR configuration, `value` against distance."""
     panels = list(dict.fromkeys((r["method"], r["boxes"]) for r in sel))
     if not panels:
         return
@@ -180,7 +152,7 @@ def plot_errors_vs_range(err: list[dict], cls: str, path: Path, match: str = "ce
         for r in sel:
             if (r["method"], r["boxes"]) == (method, boxes):
                 lo = float(r["range_m"].split("-")[0].rstrip("+"))
-                lines[_config_label(r)].append((lo, float(r["centre_median"])))
+                lines[_config_label(r)].append((lo, float(r[value])))
         for label, pts in lines.items():
             pts.sort()
             ax.plot([p[0] for p in pts], [p[1] for p in pts], marker="o", ms=3, label=label)
@@ -188,8 +160,23 @@ def plot_errors_vs_range(err: list[dict], cls: str, path: Path, match: str = "ce
         ax.set_xlabel("distance bin start (m)")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=6)
-    axes[0][0].set_ylabel(f"{cls} median centre error (m), {match} match")
+    axes[0][0].set_ylabel(ylabel)
+    if ylim:
+        axes[0][0].set_ylim(*ylim)
     _save(fig, path)
+
+
+def plot_ap_vs_range(rows: list[dict], cls: str, metric: str, path: Path) -> None:
+    sel = [r for r in rows if r["class"] == cls and r["metric"] == metric and r["iou"] == "strict"
+           and r["difficulty"] == "moderate" and r["range_m"] != "all" and r["ap_r40"]
+           and int(r["n_gt"]) > 0]
+    _plot_by_range(sel, "ap_r40", f"{cls} {metric.upper()} AP|R40 moderate", path, (0, 102))
+
+
+def plot_errors_vs_range(err: list[dict], cls: str, path: Path, match: str = "centre") -> None:
+    sel = [r for r in err if r["class"] == cls and r["range_m"] != "all" and r["match"] == match
+           and r["centre_median"]]
+    _plot_by_range(sel, "centre_median", f"{cls} median centre error (m), {match} match", path)
 
 
 def _save(fig, path: Path) -> None:
