@@ -44,7 +44,7 @@ def main() -> None:
         ids = KittiDataset(path).ids(args.split)
         gt = {i: gt_all[i] for i in ids}
         for method in args.methods.split(","):
-            if method in image_only_done:  # mono uses no LiDAR: the same on every scan
+            if method in image_only_done:  # no LiDAR used: the same on every scan
                 rows.append((label, method, *image_only_done[method]))
                 continue
             pred_dir = out / f"{label}_{method}"
@@ -56,7 +56,8 @@ def main() -> None:
             vals = (a["3d"]["R40"], al["3d"]["R40"], a["bev"]["R40"])
             results[f"{label}/{method}"] = {"3d@0.7": vals[0], "3d@0.5": vals[1], "bev@0.7": vals[2],
                                             "n_gt": r.to_json()["n_gt"]["Car"]}
-            if method == "mono":
+            if method == "mono" or (method == "roadside" and any(
+                    (Path(path) / "training" / "planes").glob("*.txt"))):
                 image_only_done[method] = list(vals)
             rows.append((label, method, *vals))
     lines = ["| LiDAR | method | Car 3D AP R40 @0.7 (E / M / H) | 3D @0.5 (E / M / H) | BEV @0.7 (E / M / H) |",

@@ -54,6 +54,7 @@ class TrainConfig:
     val_data: str | None = None        # evaluation root (default: the training root)
     eval_every: int = 1                # epochs between evaluations; 0: never
     ema_decay: float = 0.999
+    init: str | None = None            # start from these weights (fine-tuning); anchors come with them
     seed: int = 0
     threads: int = 2
     progress: bool = True
@@ -164,16 +165,23 @@ def train(cfg: TrainConfig, resume: bool = False, stop_after: int | None = None)
     out.mkdir(parents=True, exist_ok=True)
     ck_path = out / "last.pt"
     ck = torch.load(ck_path, map_location="cpu", weights_only=True) if resume and ck_path.is_file() else None
+    init = torch.load(cfg.init, map_location="cpu", weights_only=True) if cfg.init and ck is None else None
     if ck is not None:
         cfg = replace(cfg, img_size=tuple(ck["input_size"]))
+    elif init is not None and cfg.img_size is None:
+        cfg = replace(cfg, img_size=tuple(init["input_size"]))
     img_size = cfg.img_size or _default_size(cfg.data, cfg.train_split)
     data = DetectionData(cfg.data, cfg.train_split, img_size, cfg.progress)
     if ck is not None:
         mcfg = ModelConfig.from_dict(ck["model_cfg"])
+    elif init is not None:
+        mcfg = ModelConfig.from_dict(init["model_cfg"])
     else:
         mcfg = ModelConfig.from_preset(cfg.preset, num_classes=len(CLASSES), activation=cfg.activation,
                                        anchors=fit_anchors(data, cfg.seed))
     model = FlexiNet(mcfg)
+    if init is not None:
+        model.load_state_dict(init["model"])
     criterion = DetectionLoss(model.head, cfg.box_loss)
     opt = make_optimizer(model, cfg)
     ema = ModelEMA(model, cfg.ema_decay)

@@ -1,5 +1,6 @@
-"""2D-box crops for the size and orientation network: the box warped to S x S (aspect not kept, as in
-Deep3DBox/000), optionally jittered like a detector's box and mirrored (alpha -> pi - alpha)."""
+"""2D-box crops for the size and orientation network: the square around the box scaled to S x S
+(000 and Deep3DBox warp the box itself; keeping the aspect ratio keeps the length cue), optionally
+jittered like a detector's box and mirrored (alpha -> pi - alpha)."""
 
 from __future__ import annotations
 
@@ -11,10 +12,14 @@ STD = np.array([0.229, 0.224, 0.225], dtype=np.float32) * 255
 
 
 def crop(image: np.ndarray, bbox: np.ndarray, size: int) -> np.ndarray:
-    """(size, size, 3) uint8: the image inside bbox [x1, y1, x2, y2] (sub-pixel) warped to a square."""
+    """(size, size, 3) uint8: the square around bbox [x1, y1, x2, y2] (side = the longer side,
+    sub-pixel) scaled to size. Not warped: the box's aspect ratio, which tells a long car from a
+    short one at the same orientation, stays in the crop."""
     x1, y1, x2, y2 = (float(v) for v in bbox)
-    w, h = max(x2 - x1, 1.0), max(y2 - y1, 1.0)
-    m = np.array([[size / w, 0, -x1 * size / w], [0, size / h, -y1 * size / h]], dtype=np.float64)
+    side = max(x2 - x1, y2 - y1, 1.0)
+    x1, y1 = 0.5 * (x1 + x2 - side), 0.5 * (y1 + y2 - side)
+    k = size / side
+    m = np.array([[k, 0, -x1 * k], [0, k, -y1 * k]], dtype=np.float64)
     return cv2.warpAffine(image, m, (size, size), flags=cv2.INTER_LINEAR,
                           borderMode=cv2.BORDER_REPLICATE)
 

@@ -49,22 +49,28 @@ def _project(pts: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def solve_translation(dims: np.ndarray, rotation_y: float, bbox: np.ndarray, calib: Calibration,
                       image_size: tuple[int, int], plane: np.ndarray | None = None,
-                      cam: int = 2) -> MonoSolution:
+                      cam: int = 2, cut_ok: bool = False) -> MonoSolution:
     """Bottom-centre translation for a box of size `dims` (h, w, l) and yaw `rotation_y` whose
     projection fits `bbox` [x1, y1, x2, y2]. `plane` (a, b, c, d; rect frame) adds the constraint
     that the bottom centre lies on the road, which fixes the depth when the box is cut by the border.
+    With `cut_ok`, a box cut on so many sides that fewer than 3 constraints remain uses its border
+    sides too; without it, that is an error.
     """
     h, w, l = (float(v) for v in dims)
     P = calib.P(cam)
     W, H = image_size
     x1, y1, x2, y2 = (float(v) for v in bbox)
     offs = box_corners(np.array([[0, 0, 0, h, w, l, rotation_y]]))[0]  # (8, 3) from bottom centre
-    sides = [(0, x1, _ALL, x1 > BORDER_PX), (0, x2, _ALL, x2 < W - 1 - BORDER_PX),
-             (1, y1, _TOP, y1 > BORDER_PX), (1, y2, _BOTTOM, y2 < H - 1 - BORDER_PX)]
+    # (axis, pixel, admissible corners, constrains?, is the minimum side)
+    sides = [(0, x1, _ALL, x1 > BORDER_PX, True), (0, x2, _ALL, x2 < W - 1 - BORDER_PX, False),
+             (1, y1, _TOP, y1 > BORDER_PX, True), (1, y2, _BOTTOM, y2 < H - 1 - BORDER_PX, False)]
     rows, rhs_sets, choices = [], [], []
-    for axis, s, corner_set, active in sides:
-        if not active:
-            continue
+    if sum(side[3] for side in sides) + (plane is not None) < 3 and cut_ok:
+        # cut on too many sides: take the border as the outline there (the box is then too small,
+        # so the depth comes out too far; the only answer the image still gives)
+        sides = [(axis, s, corner_set, True, is_min) for axis, s, corner_set, _, is_min in sides]
+    sides = [side for side in sides if side[3]]
+    for axis, s, corner_set, _, _ in sides:
         r = P[axis] - s * P[2]  # (4,)
         rows.append(r[:3])
         rhs_sets.append(-(offs @ r[:3] + r[3]))  # (8,) one rhs per corner
@@ -88,13 +94,23 @@ def solve_translation(dims: np.ndarray, rotation_y: float, bbox: np.ndarray, cal
                      np.clip(hi[:, 0], 0, W - 1), np.clip(hi[:, 1], 0, H - 1)], axis=1)
     err = np.abs(proj - np.array([x1, y1, x2, y2])).mean(axis=1)
     err = np.where((z > 0.1).all(axis=1), err, np.inf)
+    # an assignment is consistent when the corner given to each side really is the extreme one
+    # there; with an imperfect size or orientation a wrong assignment can fit the box better, and
+    # its depth is far off, so consistent ones win
+    consistent = np.ones(len(T), dtype=bool)
+    for col, (axis, _, corner_set, _, is_min) in enumerate(sides):
+        vals = uv[:, corner_set, axis]  # (K, n) coordinates of the admissible corners
+        mine = uv[np.arange(len(T)), combos[:, col], axis]
+        consistent &= (mine <= vals.min(axis=1) + 1e-6) if is_min else (mine >= vals.max(axis=1) - 1e-6)
+    if np.isfinite(err[consistent]).any():
+        err = np.where(consistent, err, np.inf)
     best = int(np.argmin(err))
     return MonoSolution(T[best], float(rotation_y), float(err[best]))
 
 
 def solve_from_alpha(dims: np.ndarray, alpha: float, bbox: np.ndarray, calib: Calibration,
                      image_size: tuple[int, int], plane: np.ndarray | None = None, cam: int = 2,
-                     iters: int = 8, tol: float = 1e-6) -> MonoSolution:
+                     iters: int = 8, tol: float = 1e-6, cut_ok: bool = False) -> MonoSolution:
     """As `solve_translation`, for a local orientation alpha: rotation_y = alpha + atan2(x, z)
     depends on the translation, so start from the ray through the 2D box centre and iterate (the
     ray angle moves little with the translation: converges in a few steps)."""
@@ -102,11 +118,11 @@ def solve_from_alpha(dims: np.ndarray, alpha: float, bbox: np.ndarray, calib: Ca
     v = 0.5 * (bbox[1] + bbox[3])
     ray = calib.image_to_rect(np.array([[u, v]]), np.array([10.0]), cam)[0]
     ry = float(wrap_angle(alpha + np.arctan2(ray[0], ray[2])))
-    sol = solve_translation(dims, ry, bbox, calib, image_size, plane, cam)
+    sol = solve_translation(dims, ry, bbox, calib, image_size, plane, cam, cut_ok)
     for _ in range(iters):
         ry_new = float(wrap_angle(alpha + np.arctan2(sol.location[0], sol.location[2])))
         if abs(wrap_angle(ry_new - ry)) < tol:
             break
         ry = ry_new
-        sol = solve_translation(dims, ry, bbox, calib, image_size, plane, cam)
+        sol = solve_translation(dims, ry, bbox, calib, image_size, plane, cam, cut_ok)
     return sol

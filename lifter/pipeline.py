@@ -67,7 +67,7 @@ def _mono(box: Box2D, prior: Prior, calib: Calibration, size, plane) -> Lifted:
         sol = solve_from_alpha(prior.dims, prior.alpha, box.bbox, calib, size)
         return Lifted(sol.location, sol.rotation_y, np.asarray(prior.dims, dtype=float), 0.5)
     except ValueError:
-        sol = solve_from_alpha(prior.dims, prior.alpha, box.bbox, calib, size, plane)
+        sol = solve_from_alpha(prior.dims, prior.alpha, box.bbox, calib, size, plane, cut_ok=True)
         return Lifted(sol.location, sol.rotation_y, np.asarray(prior.dims, dtype=float), 0.3)
 
 

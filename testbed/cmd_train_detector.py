@@ -46,6 +46,8 @@ def _split(value: str) -> str | None:
 @click.option("--val-split", default="val", show_default=True, help="ImageSets name, or 'all'.")
 @click.option("--eval-every", default=1, show_default=True, type=click.IntRange(0),
               help="Epochs between 2D AP evaluations (0: never).")
+@click.option("--init", "init_weights", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+              help="Start from these weights (fine-tuning, e.g. real KITTI from synthetic); keeps their anchors.")
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(0))
 @click.option("--threads", default=2, show_default=True, type=click.IntRange(1))
 @click.option("--resume", is_flag=True, help="Continue from OUT/last.pt.")
@@ -53,8 +55,8 @@ def train_detector(data: Path, out: Path, preset: str, epochs: int, img_size, ba
                    momentum: float, weight_decay: float, schedule: str, warmup_epochs: float,
                    activation: str, box_loss: str, mosaic: float, scale: float, fliplr: float, hsv: bool,
                    mixup: str, mixup_prob: float, mixup_iou: float, close_mosaic: int, train_split: str,
-                   val_data: Path | None, val_split: str, eval_every: int, seed: int, threads: int,
-                   resume: bool) -> None:
+                   val_data: Path | None, val_split: str, eval_every: int, init_weights: Path | None,
+                   seed: int, threads: int, resume: bool) -> None:
     """Train the FlexiNet 2D detector (Car incl. Van, Pedestrian, Cyclist) on DATA."""
     from detector.augment import AugmentConfig
     from detector.train import TrainConfig, train
@@ -70,7 +72,8 @@ def train_detector(data: Path, out: Path, preset: str, epochs: int, img_size, ba
                           schedule=schedule, activation=activation, box_loss=box_loss, augment=aug,
                           close_mosaic=close_mosaic, train_split=_split(train_split),
                           val_split=_split(val_split), val_data=str(val_data) if val_data else None,
-                          eval_every=eval_every, seed=seed, threads=threads)
+                          eval_every=eval_every, init=str(init_weights) if init_weights else None,
+                          seed=seed, threads=threads)
         row = train(cfg, resume=resume)
     except (KittiFormatError, ValueError, FileNotFoundError) as e:
         raise click.ClickException(str(e)) from None

@@ -81,3 +81,18 @@ def test_resume_is_exact(tmp_path):
 def test_missing_weights_named(tmp_path):
     with pytest.raises(FileNotFoundError, match="nope.pt"):
         Detector.load(tmp_path / "nope.pt")
+
+
+def test_init_starts_from_given_weights(overfit_run, tmp_path):
+    root, run = overfit_run
+    cfg = TrainConfig(data=str(root), out=str(tmp_path / "ft"), epochs=1, batch=8, lr=0.0, eval_every=0,
+                      augment=AugmentConfig.off(), close_mosaic=0, init=str(run / "weights.pt"),
+                      threads=1, progress=False)
+    train(cfg)
+    src = torch.load(run / "weights.pt", weights_only=True)
+    ft = torch.load(tmp_path / "ft" / "weights.pt", weights_only=True)
+    assert ft["input_size"] == src["input_size"] and ft["model_cfg"] == src["model_cfg"]
+    # lr 0: every learned tensor is unchanged (only BN running statistics move)
+    for k, v in src["model"].items():
+        if "running" not in k and "num_batches" not in k:
+            assert torch.equal(v, ft["model"][k]), k

@@ -42,15 +42,15 @@ def test_loss_is_zero_at_the_truth_and_weighted_6_and_3():
 
 def test_mobilenet_v2_shapes_and_class_means():
     net = SizeOrientationNet(NetConfig(width=0.25, crop=64, last_channels=64, hidden=32)).eval()
-    x = torch.zeros(3, 3, 64, 64)
-    cls = torch.tensor([0, 1, 2])
+    x = torch.zeros(5, 3, 64, 64)
+    cls = torch.tensor([0, 1, 2, 3, 4])
     with torch.no_grad():
         torch.nn.init.zeros_(net.dims.weight)
         torch.nn.init.zeros_(net.dims.bias)
         dims, conf, cs = net(x, cls)
-    assert conf.shape == (3, 2) and cs.shape == (3, 2, 2)
+    assert conf.shape == (5, 2) and cs.shape == (5, 2, 2)
     np.testing.assert_allclose(dims.numpy(), np.array(NetConfig().class_means), rtol=1e-6)
-    assert len(CLASSES) == 3
+    assert CLASSES[:3] == ("Car", "Pedestrian", "Cyclist")
 
 
 def _tiny_dataset(root):
