@@ -2,7 +2,7 @@
 training time a run needed to reach a Car 2D AP|R40 moderate target (from its history.csv).
 
     .venv/bin/python benchmarks/bench_detector.py [--weights W] [--threads 2] [--runs 30]
-                                                  [--history runs/det_main/history.csv] [--target 90]
+                                                  [--history RUN/history.csv [FT/history.csv]] [--target 90]
 """
 from __future__ import annotations
 
@@ -20,8 +20,9 @@ from detector.model import count_parameters
 from detector.nms import postprocess
 
 
-def time_inference(det: Detector, runs: int, rng: np.random.Generator) -> dict[str, float]:
-    img = rng.integers(0, 256, size=(375, 1242, 3), dtype=np.uint8)
+def time_inference(det: Detector, runs: int, img: np.ndarray) -> dict[str, float]:
+    """Median times on one 1242x375 image (post-processing cost depends on the image: use a real
+    frame; uniform noise makes thousands of low-score candidates and a slow NMS)."""
     lb = Letterbox.fit(1242, 375, *det.input_size)
     x = torch.from_numpy(lb.apply(img)[None]).permute(0, 3, 1, 2).float().div_(255)
     for _ in range(3):
@@ -39,14 +40,15 @@ def time_inference(det: Detector, runs: int, rng: np.random.Generator) -> dict[s
     return {"network_ms": 1000 * statistics.median(net), "end_to_end_ms": 1000 * statistics.median(full)}
 
 
-def time_to_target(history: str, target: float) -> str:
-    rows = list(csv.DictReader(open(history)))
+def time_to_target(histories: list[str], target: float) -> str:
+    """Training stages run one after the other (e.g. a run, then a fine-tune started from it)."""
+    rows = [r for h in histories for r in csv.DictReader(open(h))]
     elapsed = 0.0
     for r in rows:
         elapsed += float(r["seconds"])
         ap = r.get("Car_2d_R40_moderate") or ""
         if ap and float(ap) >= target:
-            return (f"Car 2D AP|R40 moderate >= {target} first at epoch {r['epoch']} "
+            return (f"Car 2D AP|R40 moderate >= {target} first after {rows.index(r) + 1} epochs "
                     f"({float(ap):.2f}) after {elapsed / 60:.1f} min of training (evaluations included)")
     last = [r for r in rows if r.get("Car_2d_R40_moderate")]
     best = max((float(r["Car_2d_R40_moderate"]) for r in last), default=float("nan"))
@@ -58,15 +60,25 @@ def main() -> None:
     ap.add_argument("--weights", default=str(DEFAULT_WEIGHTS))
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--runs", type=int, default=30)
-    ap.add_argument("--history", default=None, help="history.csv of a training run")
+    ap.add_argument("--history", nargs="+", default=None,
+                    help="history.csv of a training run (several: stages run one after the other)")
     ap.add_argument("--target", type=float, default=90.0)
+    ap.add_argument("--data", default=None, help="KITTI root whose first frame is timed (default: noise)")
     a = ap.parse_args()
     torch.set_num_threads(a.threads)
     det = Detector.load(a.weights)
     w, h = det.input_size
-    t = time_inference(det, a.runs, np.random.default_rng(0))
+    if a.data:
+        from kitti.dataset import KittiDataset
+        ds = KittiDataset(a.data)
+        img, src = ds.image(ds.ids(None)[0]), f"frame {ds.ids(None)[0]} of {a.data}"
+    else:
+        img, src = np.random.default_rng(0).integers(0, 256, (375, 1242, 3), dtype=np.uint8), "uniform noise"
+    if img.shape[:2] != (375, 1242):
+        raise SystemExit(f"{src} is {img.shape[1]}x{img.shape[0]}, not 1242x375")
+    t = time_inference(det, a.runs, img)
     print(f"weights {a.weights}: {count_parameters(det.model) / 1e6:.2f} M parameters (BN folded), "
-          f"input {w}x{h}, {a.threads} thread(s), median of {a.runs}")
+          f"input {w}x{h}, {a.threads} thread(s), median of {a.runs}, image: {src}")
     print(f"  network forward:                    {t['network_ms']:.1f} ms per 1242x375 image")
     print(f"  letterbox + network + NMS + mapping: {t['end_to_end_ms']:.1f} ms per 1242x375 image")
     if a.history:

@@ -14,6 +14,7 @@ from detector.data import CLASSES
 from detector.model import FlexiNet, ModelConfig
 from detector.nms import postprocess
 from kitti.dataset import KittiDataset
+from kitti.io import atomic_path
 from kitti.labels import Object3D, write_label
 
 DEFAULT_WEIGHTS = Path(__file__).resolve().parent / "weights" / "flexinet_small.pt"
@@ -21,7 +22,6 @@ DEFAULT_WEIGHTS = Path(__file__).resolve().parent / "weights" / "flexinet_small.
 
 def save_checkpoint(path: Path, model: FlexiNet, input_size: tuple[int, int], extra: dict | None = None) -> None:
     """A self-describing checkpoint: network config (anchors included), input size, class names, weights."""
-    from kitti.io import atomic_path
     state = {"model_cfg": model.cfg.to_dict(), "input_size": list(input_size), "classes": list(CLASSES),
              "model": {k: v.detach().clone() for k, v in model.state_dict().items()}}
     state.update(extra or {})

@@ -42,6 +42,8 @@ class ConvUnit(nn.Module):
     def __init__(self, c1: int, c2: int, k: int = 1, s: int = 1, act: str = "hardswish"):
         super().__init__()
         self.conv = nn.Conv2d(c1, c2, k, s, k // 2, bias=False)
+        # momentum 0.1 (not YOLOv5's 0.03): with the few thousand steps a CPU run affords, slower
+        # running statistics lag the weights and eval-mode outputs collapse (seen on toy runs)
         self.bn = nn.BatchNorm2d(c2, eps=1e-3, momentum=0.1)
         self.act = make_activation(act, c2)
 

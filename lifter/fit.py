@@ -5,16 +5,21 @@ Per 2D box, nearest first (depth from the road point under the box's bottom edge
 under CLAIM_MIN_SCORE after the others):
 1. frustum returns above the road (ROAD_CUT .. MAX_HEIGHT), minus those already claimed by a
    nearer box's fit (an occluder with its own 2D box);
-2. bird's-eye Euclidean clusters (a vertical surface stays connected however few beams hit it);
-   the cluster that best covers the box's columns at the depth the road predicts is the object;
+2. bird's-eye Euclidean clusters (a vertical surface stays connected however few beams hit it),
+   each grown by the neighbouring clusters that keep it car-sized (a far car's bumper and roof
+   fall apart); the set that best covers the box's columns at the depth the road predicts wins;
 3. yaw by L-shape search (closeness criterion) over 0..90 degrees; of the four yaws it allows, the
    one nearest the network's; too few or collinear-in-one-point returns keep the network's yaw;
 4. size: the network's, measured where both ends show, grown to hold the returns (capped);
-   the height brought within ROOF_GAP of the roof returns when the roof is hit;
-5. translation (x, z) by weighted least squares: the visible faces must touch the extreme returns
-   (L-shape), the box sides must project onto the 2D box's left and right sides, and the bottom
-   sits on the road plane; two passes (the corner that touches each side may change);
-6. fewer than MIN_POINTS returns: the image-only solution constrained to the road plane.
+   the height brought within ROOF_GAP of the roof returns when the roof is hit; a length the
+   returns do not measure is chosen among LENGTH_STEPS x the network's by how well the fitted
+   box's outline meets the 2D box's left and right sides;
+5. translation (x, z) by weighted least squares: the faces the returns confirm must touch the
+   extreme returns, the box's outline must meet the 2D box's left and right sides (across the
+   camera ray only: a 2D side fixes a bearing, not a depth), and the bottom sits on the road
+   plane; two passes (the corner that touches each side may change);
+6. fewer than MIN_POINTS returns: the image-only solution constrained to the road plane;
+7. score = 2D score x a quality from the number of returns and the faces that pin the box.
 """
 
 from __future__ import annotations
@@ -60,10 +65,17 @@ ROOF_SEEN = 0.75       # highest return above this share of the prior height: th
 ROOF_GAP = 0.2         # m, the top lies at most this far above the highest roof return (64 beams:
                        # 90 % within 0.14 m on the testbed's cars; sparse scans a little more)
 MERGE_SLACK = 0.3      # m, how much larger than the size prior's diagonal a merged set may be
+LENGTH_STEPS = np.array([0.85, 0.9, 0.95, 1.05, 1.1, 1.15])  # x prior length tried against the 2D box
 SMALL_CLASSES = ("Pedestrian", "Cyclist", "Person_sitting")
 
 _COARSE = np.deg2rad(np.arange(0.0, 90.0, 1.0))
 _FINE = np.deg2rad(np.arange(-1.0, 1.0001, 0.1))
+
+
+def _pct(v: np.ndarray, q: float) -> float:
+    """The q-th percentile (nearest rank): np.percentile's interpolation costs ten times more."""
+    k = int(round(q / 100.0 * (len(v) - 1)))
+    return float(np.partition(v, k)[k])
 
 
 def _bev_clusters(xz: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -123,13 +135,13 @@ def _depth_sigma(d: float) -> float:
 def _fallback(box, prior, calib, image_size, plane, cam) -> Lifted:
     sol = solve_from_alpha(prior.dims, prior.alpha, box.bbox, calib, image_size, plane, cam,
                            cut_ok=True)
-    return Lifted(sol.location, sol.rotation_y, np.asarray(prior.dims, dtype=float), quality=0.3)
+    return Lifted(sol.location, sol.rotation_y, np.asarray(prior.dims, dtype=float), quality=0.2)
 
 
 def _faces(pxz: np.ndarray, puv: np.ndarray, e: np.ndarray, e_other: np.ndarray, size: float,
            other: float, grow: float, sensor_xz: np.ndarray, box: Box2D,
            width: int) -> tuple[float, float, float]:
-    """The centre coordinate along axis e implied by a true face of the returns, or None.
+    """The centre coordinate along axis e implied by the faces the returns show.
 
     The extreme of the returns facing the sensor is a face when the returns beside it spread
     across it (the face is seen), or when it reaches a 2D box side (the outline ends there: the
@@ -140,7 +152,7 @@ def _faces(pxz: np.ndarray, puv: np.ndarray, e: np.ndarray, e_other: np.ndarray,
     and `grow` above the prior). Returns the centre coordinate, a weight factor and the size.
     """
     p, q = rowdot(pxz, e), rowdot(pxz, e_other)
-    lo, hi = np.percentile(p, [2.0, 98.0])
+    lo, hi = _pct(p, 2.0), _pct(p, 98.0)
     near_lo = sensor_xz @ e < 0.5 * (lo + hi)
     tol = max(FACE_TOL_PX, FACE_TOL_FRAC * (box.bbox[2] - box.bbox[0]))
     x1, x2 = box.bbox[0], box.bbox[2]
@@ -177,9 +189,10 @@ def _faces(pxz: np.ndarray, puv: np.ndarray, e: np.ndarray, e_other: np.ndarray,
 
 def _translation(pxz: np.ndarray, puv: np.ndarray, dims: np.ndarray, ry: float, box: Box2D,
                  sensor: np.ndarray, start: np.ndarray, calib: Calibration, image_size,
-                 plane: np.ndarray, cam: int) -> tuple[np.ndarray, np.ndarray]:
+                 plane: np.ndarray, cam: int) -> tuple[np.ndarray, np.ndarray, int]:
     """Bottom-centre (x, y, z) by weighted least squares on faces, 2D sides and the road plane,
-    and the size with l and w measured where the returns show both ends."""
+    the size with l and w measured where the returns show both ends, and how many of the two axes
+    a confirmed face pins down."""
     h, w, l = dims
     ea = np.array([np.cos(ry), -np.sin(ry)])  # heading in (x, z)
     eb = np.array([np.sin(ry), np.cos(ry)])   # lateral
@@ -187,10 +200,11 @@ def _translation(pxz: np.ndarray, puv: np.ndarray, dims: np.ndarray, ry: float, 
     ray = start[[0, 2]] - sxz
     ray = ray / max(np.linalg.norm(ray), 1e-9)
     rows, rhs, wts = [], [], []
-    sizes = []
+    sizes, pinned = [], 0
     for e, eo, size, other, grow in ((ea, eb, l, w, MAX_GROW_L), (eb, ea, w, l, MAX_GROW_W)):
         centre, weight, size = _faces(pxz, puv, e, eo, size, other, grow, sxz, box, image_size[0])
         sizes.append(size)
+        pinned += weight == 1.0
         rows.append(e)
         rhs.append(centre)
         wts.append(weight * (0.2 + 0.8 * abs(ray @ e)) / SIGMA_FACE)
@@ -232,7 +246,17 @@ def _translation(pxz: np.ndarray, puv: np.ndarray, dims: np.ndarray, ry: float, 
         wv = np.concatenate([w0, extra_w])
         xz, *_ = np.linalg.lstsq(A * wv[:, None], b * wv, rcond=None)
     y = -(n[0] * xz[0] + n[2] * xz[1] + plane[3]) / n[1]
-    return np.array([xz[0], y, xz[1]]), np.array([h, w, l])
+    return np.array([xz[0], y, xz[1]]), np.array([h, w, l]), pinned
+
+
+def _side_error(T, dims, ry, box: Box2D, calib: Calibration, image_size, cam: int) -> float:
+    """Mean |projected box side - 2D box side| in pixels over the left and right sides not cut by
+    the image border."""
+    uv, _ = calib.rect_to_image(box_corners(np.array([[*T, *dims, ry]]))[0], cam)
+    errs = [abs(uv[:, 0].min() - box.bbox[0])] if box.bbox[0] > 1.0 else []
+    if box.bbox[2] < image_size[0] - 2.0:
+        errs.append(abs(uv[:, 0].max() - box.bbox[2]))
+    return float(np.mean(errs)) if errs else 0.0
 
 
 def _merge(xz: np.ndarray, labels: np.ndarray, seed: int, diag: float) -> np.ndarray:
@@ -310,8 +334,8 @@ def lift_fit(boxes: list[Box2D], priors: list[Prior], pts: FramePoints, calib: C
         ry = ry_prior if small or len(obj) < MIN_LSHAPE else fit_yaw(oxz, ry_prior)
         ea = np.array([np.cos(ry), -np.sin(ry)])
         eb = np.array([np.sin(ry), np.cos(ry)])
-        ext_a = np.subtract(*np.percentile(rowdot(oxz, ea), [98.0, 2.0]))
-        ext_b = np.subtract(*np.percentile(rowdot(oxz, eb), [98.0, 2.0]))
+        pa, pb = rowdot(oxz, ea), rowdot(oxz, eb)
+        ext_a, ext_b = _pct(pa, 98.0) - _pct(pa, 2.0), _pct(pb, 98.0) - _pct(pb, 2.0)
         if not small:  # grow to hold the returns, unless they clearly hold something else too
             l = ext_a if l < ext_a <= l + MAX_GROW_L else l
             w = ext_b if w < ext_b <= w + MAX_GROW_W else w
@@ -322,15 +346,25 @@ def lift_fit(boxes: list[Box2D], priors: list[Prior], pts: FramePoints, calib: C
         start_xz = centroid
         start_y = -(plane[0] * start_xz[0] + plane[2] * start_xz[1] + plane[3]) / plane[1]
         start = np.array([start_xz[0], start_y, start_xz[1]])
-        T, dims = _translation(oxz, pts.uv[obj], dims, ry, box, pts.sensor, start, calib,
+        T, dims, pinned = _translation(oxz, pts.uv[obj], dims, ry, box, pts.sensor, start, calib,
                                image_size, plane, cam)
+        if not small and dims[2] == l:  # length not measured: let the 2D box's width choose it
+            best_err = _side_error(T, dims, ry, box, calib, image_size, cam)
+            for cand_l in l * LENGTH_STEPS:
+                T2, d2, p2 = _translation(oxz, pts.uv[obj], np.array([h, w, cand_l]), ry, box,
+                                          pts.sensor, start, calib, image_size, plane, cam)
+                err = _side_error(T2, d2, ry, box, calib, image_size, cam)
+                if err < best_err - 0.5:
+                    T, dims, pinned, best_err = T2, d2, p2, err
         h, w, l = dims
         # claim this object's returns so a farther box does not take them as its own
         grown = np.array([[T[0], T[1] + CLAIM_MARGIN, T[2], h + 2 * CLAIM_MARGIN,
                            w + 2 * CLAIM_MARGIN, l + 2 * CLAIM_MARGIN, ry]])
         if confident[i]:
             free[cand[_in_box_bev(pts.rect[cand], grown[0])]] = False
-        out[i] = Lifted(T, ry, dims, quality=0.5 + 0.5 * min(1.0, len(obj) / 30))
+        # ranking: many returns and faces that pin the box down make a fit trustworthy
+        quality = (0.5 + 0.5 * min(1.0, len(obj) / 30)) * (0.6 + 0.2 * pinned)
+        out[i] = Lifted(T, ry, dims, quality=quality)
     return out  # type: ignore[return-value]
 
 

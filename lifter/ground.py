@@ -15,7 +15,7 @@ INLIER_M = 0.05       # a return within 5 cm of the plane is road (a 15 cm curb 
 ITERATIONS = 60       # P(no all-road sample) < 1e-6 when half the candidates are road
 MIN_UP = 0.95         # |n_y| of an admissible road normal (slopes up to ~18 deg)
 REFINE_STEPS = 4        # least-squares refits
-MAX_POINTS = 6000       # candidate returns used
+MAX_POINTS = 3000       # candidate returns used
 CANDIDATE_BELOW = 0.8  # only returns at least this far below the camera can be road (metres)
 
 

@@ -61,16 +61,16 @@ def solve_translation(dims: np.ndarray, rotation_y: float, bbox: np.ndarray, cal
     W, H = image_size
     x1, y1, x2, y2 = (float(v) for v in bbox)
     offs = box_corners(np.array([[0, 0, 0, h, w, l, rotation_y]]))[0]  # (8, 3) from bottom centre
-    # (axis, pixel, admissible corners, constrains?, is the minimum side)
-    sides = [(0, x1, _ALL, x1 > BORDER_PX, True), (0, x2, _ALL, x2 < W - 1 - BORDER_PX, False),
-             (1, y1, _TOP, y1 > BORDER_PX, True), (1, y2, _BOTTOM, y2 < H - 1 - BORDER_PX, False)]
+    # (axis, pixel, admissible corners, constrains?)
+    sides = [(0, x1, _ALL, x1 > BORDER_PX), (0, x2, _ALL, x2 < W - 1 - BORDER_PX),
+             (1, y1, _TOP, y1 > BORDER_PX), (1, y2, _BOTTOM, y2 < H - 1 - BORDER_PX)]
     rows, rhs_sets, choices = [], [], []
     if sum(side[3] for side in sides) + (plane is not None) < 3 and cut_ok:
         # cut on too many sides: take the border as the outline there (the box is then too small,
         # so the depth comes out too far; the only answer the image still gives)
-        sides = [(axis, s, corner_set, True, is_min) for axis, s, corner_set, _, is_min in sides]
+        sides = [(axis, s, corner_set, True) for axis, s, corner_set, _ in sides]
     sides = [side for side in sides if side[3]]
-    for axis, s, corner_set, _, _ in sides:
+    for axis, s, corner_set, _ in sides:
         r = P[axis] - s * P[2]  # (4,)
         rows.append(r[:3])
         rhs_sets.append(-(offs @ r[:3] + r[3]))  # (8,) one rhs per corner
@@ -94,16 +94,6 @@ def solve_translation(dims: np.ndarray, rotation_y: float, bbox: np.ndarray, cal
                      np.clip(hi[:, 0], 0, W - 1), np.clip(hi[:, 1], 0, H - 1)], axis=1)
     err = np.abs(proj - np.array([x1, y1, x2, y2])).mean(axis=1)
     err = np.where((z > 0.1).all(axis=1), err, np.inf)
-    # an assignment is consistent when the corner given to each side really is the extreme one
-    # there; with an imperfect size or orientation a wrong assignment can fit the box better, and
-    # its depth is far off, so consistent ones win
-    consistent = np.ones(len(T), dtype=bool)
-    for col, (axis, _, corner_set, _, is_min) in enumerate(sides):
-        vals = uv[:, corner_set, axis]  # (K, n) coordinates of the admissible corners
-        mine = uv[np.arange(len(T)), combos[:, col], axis]
-        consistent &= (mine <= vals.min(axis=1) + 1e-6) if is_min else (mine >= vals.max(axis=1) - 1e-6)
-    if np.isfinite(err[consistent]).any():
-        err = np.where(consistent, err, np.inf)
     best = int(np.argmin(err))
     return MonoSolution(T[best], float(rotation_y), float(err[best]))
 

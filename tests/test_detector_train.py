@@ -96,3 +96,20 @@ def test_init_starts_from_given_weights(overfit_run, tmp_path):
     for k, v in src["model"].items():
         if "running" not in k and "num_batches" not in k:
             assert torch.equal(v, ft["model"][k]), k
+
+
+def test_shipped_weights_load_and_stay_small():
+    from detector.infer import DEFAULT_WEIGHTS
+    assert DEFAULT_WEIGHTS.stat().st_size < 20 * 2 ** 20
+    det = Detector.load()
+    assert det.classes == ("Car", "Pedestrian", "Cyclist")
+    assert det.input_size[0] % 32 == 0 and det.input_size[1] % 32 == 0
+    img = np.full((375, 1242, 3), 114, np.uint8)
+    assert det.detect([img], conf_threshold=0.5)[0].shape[1] == 6
+
+
+def test_detector_never_imports_simgen():
+    from pathlib import Path
+    import detector
+    for f in Path(detector.__file__).parent.glob("*.py"):
+        assert "simgen" not in f.read_text(), f

@@ -49,7 +49,7 @@ def test_fit_recovers_centre_and_yaw_on_64_beams_under_30m():
             yaw_err = abs(float(wrap_angle(out.rotation_y - b[6])))
             assert centre_err < 0.15, (b, out)
             assert np.rad2deg(yaw_err) < 5.0, (b, out)
-            assert out.quality > 0.5  # fitted, not the fallback
+            assert out.quality > 0.25  # fitted, not the fallback (0.2)
 
 
 @pytest.mark.parametrize("beams", [16, 8])
@@ -77,4 +77,4 @@ def test_no_returns_falls_back_to_image_only_on_the_road():
         sol = solve_from_alpha(np.array([o.h, o.w, o.l]), o.alpha, o.bbox, fr.calib, IMAGE_SIZE, PLANE)
         np.testing.assert_allclose(lf.location, sol.location)
         np.testing.assert_allclose(lf.location, b[:3], atol=1e-3)
-        assert lf.quality < 0.5
+        assert lf.quality == 0.2
