@@ -62,9 +62,11 @@ def truth_priors(boxes: list[Box2D], labels: list[Object3D]) -> list[Prior]:
 
 
 def _mono(box: Box2D, prior: Prior, calib: Calibration, size, plane) -> Lifted:
-    """Deep3DBox; a box cut on too many sides by the border needs the road to fix its depth."""
+    """Deep3DBox with the road: the 2D box's sides plus the bottom centre on the road plane (from
+    planes/, or KITTI's flat road 1.65 m below the camera); a box cut on too many sides by the
+    border may also use its border sides."""
     try:
-        sol = solve_from_alpha(prior.dims, prior.alpha, box.bbox, calib, size)
+        sol = solve_from_alpha(prior.dims, prior.alpha, box.bbox, calib, size, plane)
         return Lifted(sol.location, sol.rotation_y, np.asarray(prior.dims, dtype=float), 0.5)
     except ValueError:
         sol = solve_from_alpha(prior.dims, prior.alpha, box.bbox, calib, size, plane, cut_ok=True)
