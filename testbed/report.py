@@ -111,13 +111,18 @@ def summary_table(rows: list[dict], cls: str, metric: str, iou: str = "strict") 
     """Markdown: one line per method x boxes x scan, AP|R40 easy / moderate / hard."""
     sel = [r for r in rows if r["class"] == cls and r["metric"] == metric and r["iou"] == iou
            and r["range_m"] == "all"]
-    by = defaultdict(dict)
+    by, n_gt = defaultdict(dict), defaultdict(dict)
     for r in sel:
-        by[(r["boxes"], r["method"], _config_label(r))][r["difficulty"]] = r["ap_r40"]
-    out = ["| boxes | method | LiDAR | easy | moderate | hard |", "|---|---|---|---:|---:|---:|"]
-    for (boxes, method, cfg), v in by.items():
+        key = (r["boxes"], r["method"], _config_label(r))
+        by[key][r["difficulty"]] = r["ap_r40"]
+        n_gt[key][r["difficulty"]] = r["n_gt"]
+    out = ["| boxes | method | LiDAR | easy | moderate | hard | truth boxes (e / m / h) |",
+           "|---|---|---|---:|---:|---:|---:|"]
+    for key, v in by.items():
+        boxes, method, cfg = key
         out.append(f"| {boxes} | {method} | {cfg} | " + " | ".join(
-            f"{float(v[d]):.2f}" if v.get(d) else "-" for d in DIFFS) + " |")
+            f"{float(v[d]):.2f}" if v.get(d) else "-" for d in DIFFS) + " | "
+            + " / ".join(str(n_gt[key].get(d, "")) for d in DIFFS) + " |")
     return "\n".join(out)
 
 
@@ -197,6 +202,9 @@ def write_report(results: list[tuple[Point, dict]], out: Path, title: str, intro
     plot_ap_vs_range(rows, cls, "bev", out / "ap_vs_distance_bev.png")
     plot_errors_vs_range(err, cls, out / "errors_vs_distance.png")
     md = [f"# {title}", "", intro, "",
+          "AP is the official KITTI AP|R40 (`kitti.eval`). With fewer than 40 truth boxes in a "
+          "difficulty, even a perfect method scores at most (n - 1)/40 there, as in the official "
+          "code: the truth counts are listed next to every table.", "",
           f"## {cls} 3D AP|R40 (IoU 0.7), by method, boxes and LiDAR", "", summary_table(rows, cls, "3d"),
           "", f"## {cls} BEV AP|R40 (IoU 0.7)", "", summary_table(rows, cls, "bev"),
           "", f"## {cls} 3D AP|R40 at the loose threshold (IoU 0.5)", "",

@@ -94,7 +94,7 @@ def test_report_rows_and_tables():
         ("fit", "moderate", "70.0000"), ("mono", "moderate", "30.0000")}
     assert {r["range_m"] for r in rows} == {"all", "0-20", "20+"}
     table = summary_table(rows, "Car", "3d")
-    assert "| gt | fit | hdl64e 64 beams | 90.00 | 70.00 | 50.00 |" in table
-    assert "| gt | mono | no LiDAR | 90.00 | 30.00 | 50.00 |" in table
+    assert "| gt | fit | hdl64e 64 beams | 90.00 | 70.00 | 50.00 | 3 / 5 / 6 |" in table
+    assert "| gt | mono | no LiDAR | 90.00 | 30.00 | 50.00 | 3 / 5 / 6 |" in table
     # a bin without truth shows '-', not a number
     assert "| fit | hdl64e 64 beams | 70.0 | - |" in range_table(rows, "Car", "3d", "gt")
