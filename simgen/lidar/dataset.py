@@ -67,9 +67,13 @@ def mirror_dataset(src: Path, dst: Path) -> None:
 
 
 def claim_output(src: Path, dst: Path, request: dict) -> None:
-    """Write dst/lidar.json, or check that an earlier run there asked for the same thing."""
+    """Write dst/lidar.json, or check that an earlier run there asked for the same thing.
+
+    The source is recorded relative to dst, so the same request gives the same bytes wherever the
+    two datasets live (a sweep on another backend or machine writes identical files)."""
     path = dst / PROVENANCE
-    record = {"source": str(src.resolve()), **request}
+    dst.mkdir(parents=True, exist_ok=True)
+    record = {"source": os.path.relpath(src.resolve(), dst.resolve()), **request}
     if path.exists():
         old = json.loads(path.read_text())
         if old != record:
