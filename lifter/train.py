@@ -114,7 +114,7 @@ def evaluate(net: SizeOrientationNet, s: Samples, size: int, bs: int = 128) -> d
 def train(data: str | Path, out: str | Path, epochs: int = 30, crop_size: int = 96,
           width: float = 0.5, batch_size: int = 64, lr: float = 2e-3, seed: int = 0,
           threads: int = 2, train_split: str | None = "train", val_split: str | None = "val",
-          resume: bool = False) -> dict:
+          resume: bool = False, init: str | Path | None = None) -> dict:
     torch.manual_seed(seed)
     torch.set_num_threads(threads)
     rng = np.random.default_rng(seed)
@@ -133,6 +133,15 @@ def train(data: str | Path, out: str | Path, epochs: int = 30, crop_size: int = 
     va = collect(ds, va_ids, crop_size, "val")
     cfg = NetConfig(width=width, crop=crop_size, class_means=class_means(tr))
     net = SizeOrientationNet(cfg)
+    if init is not None:  # fine-tuning: start from these weights (their class means stay)
+        ck = torch.load(init, map_location="cpu", weights_only=False)
+        net = SizeOrientationNet(NetConfig(**ck["config"]) if isinstance(ck.get("config"), dict)
+                                 else ck["config"])
+        net.load_state_dict(ck["model"])
+        cfg = net.cfg
+        if (cfg.crop, cfg.width) != (crop_size, width):
+            raise ValueError(f"--init {init}: crop {net.cfg.crop} / width {net.cfg.width} differ from "
+                             f"--crop-size {crop_size} / --width {width}")
     opt = torch.optim.Adam(net.parameters(), lr=lr, weight_decay=1e-5)
     sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=epochs)
     start_epoch, best_loss, stale = 0, float("inf"), 0

@@ -25,15 +25,18 @@ import click
 @click.option("--all-frames", is_flag=True,
               help="Train on every frame (not ImageSets/train.txt), every 10th held out for validation.")
 @click.option("--resume", is_flag=True, help="Continue from RUN_DIR/last.pt.")
+@click.option("--init", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+              help="Start from these weights (fine-tuning, e.g. on new data).")
 def train_lifter(data: Path, out: Path, epochs: int, crop_size: int, width: float, batch_size: int,
-                 lr: float, seed: int, threads: int, all_frames: bool, resume: bool) -> None:
+                 lr: float, seed: int, threads: int, all_frames: bool, resume: bool,
+                 init: Path | None) -> None:
     """Train the lifter's MobileNetV2-style size and MultiBin orientation network."""
     from kitti.errors import KittiFormatError
     from lifter.train import train
 
     try:
         summary = train(data, out, epochs=epochs, crop_size=crop_size, width=width,
-                        batch_size=batch_size, lr=lr, seed=seed, threads=threads, resume=resume,
+                        batch_size=batch_size, lr=lr, seed=seed, threads=threads, resume=resume, init=init,
                         train_split=None if all_frames else "train",
                         val_split=None if all_frames else "val")
     except (KittiFormatError, ValueError) as e:

@@ -82,6 +82,24 @@ def test_tiny_training_run_is_seeded_and_its_checkpoint_serves(tmp_path):
     assert len(priors) == 2 and all(p.dims.shape == (3,) and -np.pi <= p.alpha <= np.pi for p in priors)
 
 
+def test_fine_tuning_starts_from_the_given_weights(tmp_path):
+    _tiny_dataset(tmp_path / "data")
+    kw = dict(crop_size=32, width=0.25, batch_size=8, seed=3, threads=1)
+    train(tmp_path / "data", tmp_path / "base", epochs=1, **kw)
+    init = tmp_path / "base" / "last.pt"
+    # with a zero learning rate the parameters stay exactly where --init put them
+    train(tmp_path / "data", tmp_path / "tuned", epochs=1, lr=0.0, init=init, **kw)
+    a = load_network(init).named_parameters()
+    b = dict(load_network(tmp_path / "tuned" / "last.pt").named_parameters())
+    assert all(torch.equal(p, b[k]) for k, p in a)
+    fresh = dict(load_network(tmp_path / "base" / "last.pt").named_parameters())
+    train(tmp_path / "data", tmp_path / "other", epochs=1, lr=0.0, **{**kw, "seed": 4})
+    other = dict(load_network(tmp_path / "other" / "last.pt").named_parameters())
+    assert not all(torch.equal(p, other[k]) for k, p in fresh.items())  # without --init they differ
+    with pytest.raises(ValueError, match="crop 32"):
+        train(tmp_path / "data", tmp_path / "bad", epochs=1, init=init, **{**kw, "crop_size": 64})
+
+
 def test_bad_checkpoint_is_named(tmp_path):
     with pytest.raises(FileNotFoundError, match="nope.pt"):
         load_network(tmp_path / "nope.pt")
