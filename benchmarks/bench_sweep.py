@@ -37,7 +37,8 @@ def main() -> None:
         base_rate = None
         for workers in (1, 2):
             shutil.rmtree(scene_root / "scans", ignore_errors=True)
-            shutil.rmtree(p.root / "points", ignore_errors=True)
+            for d in p.root.glob("points-*"):
+                shutil.rmtree(d)
             t = time.perf_counter()
             execute(p, LocalBackend(workers), workers)
             dt = time.perf_counter() - t

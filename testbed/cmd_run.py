@@ -8,7 +8,7 @@ from pathlib import Path
 import click
 
 from .cmd_sweep import with_backend_options
-from .sweep import Axes, SceneRef, SweepSpec, execute, plan
+from .sweep import Axes, SceneRef, SweepSpec, execute, models_key, plan
 
 RUN_BEAMS = [64, 32, 16]
 
@@ -81,12 +81,15 @@ def draw_examples(p, results, folder: Path, n: int) -> list[Path]:
         return []
     data = (p.root / chosen.scene / "scans" / chosen.scan.key if chosen.scan
             else p.root / chosen.scene / "base")
-    pred = p.root / "points" / chosen.key / "pred"
-    if not is_done(p.root / "points" / chosen.key):
+    point_dir = p.points_dir(models_key()) / chosen.key
+    pred = point_dir / "pred"
+    if not is_done(point_dir):
         return []
     ds = KittiDataset(data)
     ids = ds.ids(p.spec.split)[:n]
     folder.mkdir(parents=True, exist_ok=True)
+    for old in folder.glob("frame_*.png"):  # pictures of an earlier run's frames
+        old.unlink()
     drawn = []
     for fid in ids:
         fig = draw_frame(ds, fid, pred, title=f"frame {fid}: truth solid, {chosen.method} "

@@ -8,7 +8,9 @@ stopped pipeline resumes by skipping what is marked.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
+import io
 import json
 from pathlib import Path
 
@@ -16,10 +18,13 @@ from kitti.io import atomic_write_text
 
 
 def invoke(*args: object) -> None:
-    """Run `testbed ARGS...` in this process; a failing stage raises."""
+    """Run `testbed ARGS...` in this process; a failing stage raises. The stage's printout (the
+    evaluation table of every point, say) is dropped: its files are what the pipeline reads;
+    progress bars still show (stderr)."""
     from .cli import cli
 
-    cli.main(args=[str(a) for a in args], prog_name="testbed", standalone_mode=False)
+    with contextlib.redirect_stdout(io.StringIO()):
+        cli.main(args=[str(a) for a in args], prog_name="testbed", standalone_mode=False)
 
 
 def is_done(folder: Path) -> bool:

@@ -115,6 +115,10 @@ class Plan:
     scans: list[ScanConfig] = field(default_factory=list)
     points: list[Point] = field(default_factory=list)
 
+    def points_dir(self, models: str) -> Path:
+        """Lifted boxes and evaluations, per set of model weights."""
+        return self.root / f"points-{models}"
+
 
 def plan(spec: SweepSpec, root: Path | None = None) -> Plan:
     """All scan configurations and points of the sweep, in a fixed order."""
@@ -188,16 +192,27 @@ def run_point_job(job: PointJob) -> dict:
                                     list(job.range_bins))
 
 
+def models_key() -> str:
+    """Digest of the shipped detector and lifter weights: results made with other weights are
+    never taken from the cache."""
+    from detector.infer import DEFAULT_WEIGHTS as DETECTOR
+    from lifter.predictor import DEFAULT_WEIGHTS as LIFTER
+
+    return stages.digest(DETECTOR, LIFTER)
+
+
 def execute(p: Plan, backend: Backend, workers: int = 1) -> list[tuple[Point, dict]]:
     """Run every stage not yet marked done; return each point with its evaluation JSON."""
     spec = p.spec
+    models = models_key()
     bases, detections = {}, {}
     for scene in spec.scenes:
         name = scene_name(scene)
         bases[name] = stages.generate(scene.spec, p.root / name / "base", scene.frames, scene.seed,
                                       workers)
         if "detector" in spec.axes.boxes:
-            detections[name] = stages.detect(bases[name], p.root / name / "detections" , spec.split)
+            detections[name] = stages.detect(bases[name], p.root / name / f"detections-{models}",
+                                             spec.split)
     scan_dirs: dict[tuple[str, ScanConfig], Path] = {}
     for name in bases:
         for c in p.scans:
@@ -212,7 +227,7 @@ def execute(p: Plan, backend: Backend, workers: int = 1) -> list[tuple[Point, di
     for pt in p.points:
         data = scan_dirs[pt.scene, pt.scan] if pt.scan else bases[pt.scene]
         boxes = "gt" if pt.boxes == "gt" else str(detections[pt.scene])
-        jobs.append(PointJob(pt, data, boxes, p.root / "points" / pt.key, spec.split,
+        jobs.append(PointJob(pt, data, boxes, p.points_dir(models) / pt.key, spec.split,
                              tuple(spec.range_bins)))
     results = backend.map(run_point_job, jobs, desc="points")
     return list(zip(p.points, results))
