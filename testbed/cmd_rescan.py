@@ -19,11 +19,19 @@ import click
                    "on 'uniform' any N spread over +2..-24.9 deg.")
 @click.option("--max-range", type=click.FloatRange(min=0, min_open=True),
               help="Hard range cut-off, m [default: the preset's].")
+@click.option("--fog-extinction", type=click.FloatRange(min=0),
+              help="LiDAR-only weather: fog extinction beta (1/m) instead of the world's.")
+@click.option("--rain-rate", type=click.FloatRange(min=0),
+              help="LiDAR-only weather: rain rate (mm/h) instead of the world's.")
 @click.option("--workers", type=click.IntRange(min=1), default=min(2, os.cpu_count() or 1),
               show_default=True, help="Worker processes (1: in this process).")
 def rescan(dataset: Path, out: Path, lidar_preset: str, beams: int | None,
-           max_range: float | None, workers: int) -> None:
-    """Rebuild every frame's world of DATASET from meta/ and scan it again into --out."""
+           max_range: float | None, fog_extinction: float | None, rain_rate: float | None,
+           workers: int) -> None:
+    """Rebuild every frame's world of DATASET from meta/ and scan it again into --out.
+
+    --fog-extinction / --rain-rate change the weather the LiDAR sees (a sensor study: images and
+    labels stay those of the world's own weather)."""
     from simgen.lidar import preset
     from simgen.lidar.dataset import (RescanJob, claim_output, mirror_dataset, rescan_frame,
                                       rescan_ids)
@@ -33,6 +41,10 @@ def rescan(dataset: Path, out: Path, lidar_preset: str, beams: int | None,
         preset(lidar_preset, beams=beams, max_range=max_range)  # fail before any work
         ids = rescan_ids(dataset)
         lidar = {"preset": lidar_preset, "beams": beams, "max_range": max_range}
+        weather = {k: v for k, v in (("fog_extinction", fog_extinction), ("rain_rate", rain_rate))
+                   if v is not None}
+        if weather:
+            lidar["weather"] = weather
         claim_output(dataset, out, {"command": "rescan", "lidar": lidar})
         mirror_dataset(dataset, out)
         jobs = [RescanJob(dataset / "training", out / "training", fid, lidar) for fid in ids]

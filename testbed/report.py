@@ -19,11 +19,11 @@ import matplotlib.pyplot as plt  # noqa: E402
 
 from kitti.io import atomic_path, atomic_write_text  # noqa: E402
 
-from .sweep import Point  # noqa: E402
+from .sweep import Point, weather_suffix  # noqa: E402
 
 DIFFS = ("easy", "moderate", "hard")
 METRICS = ("2d", "bev", "3d", "aos")
-POINT_COLS = ("scene", "lidar", "beams", "beam_mode", "max_range", "method", "boxes")
+POINT_COLS = ("scene", "lidar", "beams", "beam_mode", "max_range", "lidar_weather", "method", "boxes")
 CSV_COLS = POINT_COLS + ("class", "metric", "iou", "difficulty", "range_m", "n_gt", "ap_r40", "ap_r11")
 ERR_COLS = POINT_COLS + ("class", "match", "range_m", "n", "centre_mean", "centre_median",
                          "depth_mean", "depth_median", "h_mean", "w_mean", "l_mean", "yaw_deg_mean",
@@ -35,6 +35,7 @@ def point_fields(pt: Point) -> dict:
     return {"scene": pt.scene, "lidar": s.lidar if s else "-", "beams": s.beams if s else "-",
             "beam_mode": s.mode if s else "-",
             "max_range": "-" if s is None or s.max_range is None else f"{s.max_range:g}",
+            "lidar_weather": "-" if s is None or s.weather is None else weather_suffix(s.weather)[1:],
             "method": pt.method, "boxes": pt.boxes}
 
 
@@ -104,7 +105,8 @@ def _config_label(row: dict) -> str:
         return "no LiDAR"
     mode = "" if row["beam_mode"] == "native" else " (rings dropped)"
     rng = "" if row["max_range"] == "-" else f", {row['max_range']} m"
-    return f"{row['lidar']} {row['beams']} beams{mode}{rng}"
+    weather = "" if row.get("lidar_weather", "-") == "-" else f", {row['lidar_weather']}"
+    return f"{row['lidar']} {row['beams']} beams{mode}{rng}{weather}"
 
 
 def summary_table(rows: list[dict], cls: str, metric: str, iou: str = "strict") -> str:

@@ -66,15 +66,19 @@ def detect(data: Path, out: Path, split: str) -> Path:
 
 
 def rescan(data: Path, out: Path, lidar: str, beams: int | None, max_range: float | None,
-           workers: int = 1) -> Path:
+           weather=None, workers: int = 1) -> Path:
+    """`weather` (fog_extinction, rain_rate attributes) overrides what the LiDAR sees."""
     if not is_done(out):
         args = ["rescan", data, "--out", out, "--lidar", lidar, "--workers", workers]
         if beams is not None:
             args += ["--beams", beams]
         if max_range is not None:
             args += ["--max-range", max_range]
+        if weather is not None:
+            args += ["--fog-extinction", weather.fog_extinction, "--rain-rate", weather.rain_rate]
         invoke(*args)
-        mark_done(out, {"data": str(data), "lidar": lidar, "beams": beams, "max_range": max_range})
+        mark_done(out, {"data": str(data), "lidar": lidar, "beams": beams, "max_range": max_range,
+                        "weather": None if weather is None else weather.model_dump()})
     return out
 
 

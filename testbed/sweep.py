@@ -30,12 +30,21 @@ class SceneRef(BaseModel):
     seed: int | None = None
 
 
+class LidarWeather(BaseModel):
+    """Weather the LiDAR sees at a sweep point (the images keep the world's own)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    fog_extinction: float = Field(0.0, ge=0.0)  # beta, 1/m
+    rain_rate: float = Field(0.0, ge=0.0)  # mm/h
+
+
 class Axes(BaseModel):
     model_config = ConfigDict(extra="forbid")
     lidar: list[str] = ["hdl64e"]
     beams: list[int] = [64]
     beam_mode: list[Literal["native", "dropped"]] = ["native"]
     max_range: list[float | None] = [None]
+    weather: list[LidarWeather | None] = [None]  # None: the world's own weather
     method: list[Literal["frustum", "fit", "mono", "roadside"]] = ["fit"]
     boxes: list[Literal["gt", "detector"]] = ["gt"]
 
@@ -86,11 +95,23 @@ class ScanConfig:
     beams: int
     mode: str  # native | dropped
     max_range: float | None
+    weather: LidarWeather | None = None
 
     @property
     def key(self) -> str:
         rng = "max" if self.max_range is None else f"{self.max_range:g}m"
-        return f"{self.lidar}-{self.beams}b-{self.mode}-{rng}"
+        return f"{self.lidar}-{self.beams}b-{self.mode}-{rng}{weather_suffix(self.weather)}"
+
+    def parent(self) -> "ScanConfig":
+        """The 64-beam native scan a dropped scan keeps rings of."""
+        return ScanConfig(self.lidar, 64, "native", self.max_range, self.weather)
+
+
+def weather_suffix(w: LidarWeather | None) -> str:
+    if w is None:
+        return ""
+    return (f"-fog{w.fog_extinction:g}" if w.fog_extinction else "") + \
+        (f"-rain{w.rain_rate:g}" if w.rain_rate else "") or "-clear"
 
 
 @dataclass(frozen=True)
@@ -124,15 +145,14 @@ def plan(spec: SweepSpec, root: Path | None = None) -> Plan:
     """All scan configurations and points of the sweep, in a fixed order."""
     ax = spec.axes
     scans: list[ScanConfig] = []
-    for lidar, beams, mode, rng in itertools.product(ax.lidar, ax.beams, ax.beam_mode, ax.max_range):
+    for lidar, beams, mode, rng, weather in itertools.product(ax.lidar, ax.beams, ax.beam_mode,
+                                                              ax.max_range, ax.weather):
         if mode == "dropped" and (beams >= 64 or 64 % beams):
             continue  # rings are dropped from a 64-beam scan: only divisors of 64 below it
-        scans.append(ScanConfig(lidar, beams, mode, rng))
+        scans.append(ScanConfig(lidar, beams, mode, rng, weather))
     for s in list(scans):  # a dropped scan needs its 64-beam native parent
-        if s.mode == "dropped":
-            parent = ScanConfig(s.lidar, 64, "native", s.max_range)
-            if parent not in scans:
-                scans.insert(0, parent)
+        if s.mode == "dropped" and s.parent() not in scans:
+            scans.insert(0, s.parent())
     points = []
     for scene in spec.scenes:
         name = scene_name(scene)
@@ -171,7 +191,7 @@ def run_scan_job(job: ScanJob) -> str:
     c = job.config
     if c.mode == "native":
         name, beams = native_sensor(c.lidar, c.beams)
-        stages.rescan(job.base, job.out, name, beams, c.max_range)
+        stages.rescan(job.base, job.out, name, beams, c.max_range, c.weather)
     else:
         stages.reduce_beams(job.parent, job.out, c.beams)
     return job.out.name
@@ -218,7 +238,7 @@ def execute(p: Plan, backend: Backend, workers: int = 1) -> list[tuple[Point, di
         for c in p.scans:
             scan_dirs[name, c] = p.root / name / "scans" / c.key
     native = [ScanJob(bases[n], d, c, None) for (n, c), d in scan_dirs.items() if c.mode == "native"]
-    dropped = [ScanJob(bases[n], d, c, scan_dirs[n, ScanConfig(c.lidar, 64, "native", c.max_range)])
+    dropped = [ScanJob(bases[n], d, c, scan_dirs[n, c.parent()])
                for (n, c), d in scan_dirs.items() if c.mode == "dropped"]
     for jobs in (native, dropped):
         if jobs:

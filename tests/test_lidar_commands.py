@@ -135,3 +135,18 @@ def test_actor_points_lie_in_their_boxes_and_the_calibration_maps_the_lidar_fram
                                    + rect_from_world[:3, 3], atol=1e-9)
         checked += 1
     assert checked >= 3
+
+
+def test_rescan_with_lidar_weather_keeps_the_images_and_loses_far_returns(source, tmp_path):
+    """--fog-extinction changes what the LiDAR sees only: beta = 0.03/m (visibility 100 m) takes the
+    two-way loss exp(-2 beta d) to 0.09 at 40 m, so far returns vanish and scatter appears near."""
+    out = tmp_path / "fog"
+    _run("rescan", source, "--out", out, "--lidar", "hdl64e", "--fog-extinction", 0.03,
+         "--workers", 1)
+    for rel in ("training/image_2/000000.png", "training/label_2/000000.txt", "training/calib/000000.txt"):
+        assert (out / rel).read_bytes() == (source / rel).read_bytes()
+    clear = read_velodyne(source / "training/velodyne/000000.bin")
+    fog = read_velodyne(out / "training/velodyne/000000.bin")
+    far = lambda p: int((np.linalg.norm(p[:, :2], axis=1) > 40).sum())  # noqa: E731
+    assert far(clear) > 0 and far(fog) < far(clear) / 4
+    assert json.loads((out / "lidar.json").read_text())["lidar"]["weather"] == {"fog_extinction": 0.03}

@@ -98,3 +98,15 @@ def test_report_rows_and_tables():
     assert "| gt | mono | no LiDAR | 90.00 | 30.00 | 50.00 | 3 / 5 / 6 |" in table
     # a bin without truth shows '-', not a number
     assert "| fit | hdl64e 64 beams | 70.0 | - |" in range_table(rows, "Car", "3d", "gt")
+
+
+def test_weather_axis_rescans_the_same_worlds_per_weather(tmp_path):
+    spec = load_sweep(_write(tmp_path, """
+name: s
+scenes: [{spec: scene.yaml}]
+axes: {beams: [16], beam_mode: [dropped], weather: [null, {fog_extinction: 0.03}, {rain_rate: 10}]}
+"""))
+    keys = [s.key for s in plan(spec).scans]
+    assert keys == ["hdl64e-64b-native-max-rain10", "hdl64e-64b-native-max-fog0.03",
+                    "hdl64e-64b-native-max", "hdl64e-16b-dropped-max", "hdl64e-16b-dropped-max-fog0.03",
+                    "hdl64e-16b-dropped-max-rain10"]

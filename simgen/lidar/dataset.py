@@ -15,7 +15,7 @@ import json
 import os
 import shutil
 import zlib
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -115,7 +115,7 @@ class RescanJob:
     src: Path  # source part folder (…/training)
     dst: Path
     fid: str
-    lidar: dict  # preset, beams, max_range
+    lidar: dict  # preset, beams, max_range, and optionally weather (a LiDAR-only override)
 
 
 def rescan_ids(src: Path, part: str = "training") -> list[str]:
@@ -141,6 +141,8 @@ def rescan_frame(job: RescanJob) -> str:
         world = world_from_meta(meta)
     except (KeyError, TypeError, ValueError) as e:
         raise ValueError(f"{meta_path}: cannot rebuild the world: {e}") from None
+    if job.lidar.get("weather"):  # the sensor sees other weather; the images keep the world's
+        world.weather = replace(world.weather, **job.lidar["weather"])
     spec = preset(job.lidar["preset"], beams=job.lidar.get("beams"),
                   max_range=job.lidar.get("max_range"))
     s = scan(world, spec, lidar_seed(int(meta["seed"]), int(meta["frame_index"])))
