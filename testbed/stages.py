@@ -46,14 +46,15 @@ def digest(*parts: object) -> str:
     return h.hexdigest()[:10]
 
 
+def _options(**values) -> list:
+    """`--name value` for every value that is set (None leaves the command's default)."""
+    return [a for k, v in values.items() if v is not None for a in (f"--{k.replace('_', '-')}", v)]
+
+
 def generate(spec: Path, out: Path, frames: int | None, seed: int | None, workers: int) -> Path:
     if not is_done(out):
-        args = ["generate", spec, "--out", out, "--workers", workers]
-        if frames is not None:
-            args += ["--frames", frames]
-        if seed is not None:
-            args += ["--seed", seed]
-        invoke(*args)
+        invoke("generate", spec, "--out", out, "--workers", workers,
+               *_options(frames=frames, seed=seed))
         mark_done(out, {"spec": str(spec), "frames": frames, "seed": seed})
     return out
 
@@ -69,14 +70,10 @@ def rescan(data: Path, out: Path, lidar: str, beams: int | None, max_range: floa
            weather=None, workers: int = 1) -> Path:
     """`weather` (fog_extinction, rain_rate attributes) overrides what the LiDAR sees."""
     if not is_done(out):
-        args = ["rescan", data, "--out", out, "--lidar", lidar, "--workers", workers]
-        if beams is not None:
-            args += ["--beams", beams]
-        if max_range is not None:
-            args += ["--max-range", max_range]
-        if weather is not None:
-            args += ["--fog-extinction", weather.fog_extinction, "--rain-rate", weather.rain_rate]
-        invoke(*args)
+        invoke("rescan", data, "--out", out, "--lidar", lidar, "--workers", workers,
+               *_options(beams=beams, max_range=max_range,
+                         fog_extinction=weather and weather.fog_extinction,
+                         rain_rate=weather and weather.rain_rate))
         mark_done(out, {"data": str(data), "lidar": lidar, "beams": beams, "max_range": max_range,
                         "weather": None if weather is None else weather.model_dump()})
     return out
