@@ -28,6 +28,10 @@ LIDAR_METHODS = ("frustum", "fit")
 # their neighbour classes (Van, Person_sitting); lifting the other vehicles too costs nothing there
 # and lets `fit` claim their returns, so a van in front is not mistaken for the car behind it.
 ORACLE_CLASSES = ("Car", "Van", "Truck", "Pedestrian", "Person_sitting", "Cyclist", "Tram")
+# Where vehicles touch the road, as a share of the box's length and width: the tyres, inside the
+# bumpers' overhang (a wheelbase of ~0.64 l and tyre outer edges at ~0.46 w, as on common cars and
+# on the generator's meshes). Mono's ground-contact row uses it; other classes touch at the corners.
+CONTACT = {"Car": (0.64, 0.92), "Van": (0.64, 0.92), "Truck": (0.64, 0.92)}
 FLAT_ROAD = np.array([0.0, -1.0, 0.0, 1.65])  # camera 1.65 m above a level road (KITTI rig)
 
 def oracle_boxes(labels: list[Object3D], classes=ORACLE_CLASSES) -> list[Box2D]:
@@ -65,11 +69,13 @@ def _mono(box: Box2D, prior: Prior, calib: Calibration, size, plane) -> Lifted:
     """Deep3DBox with the road: the 2D box's sides plus the bottom centre on the road plane (from
     planes/, or KITTI's flat road 1.65 m below the camera); a box cut on too many sides by the
     border may also use its border sides."""
+    contact = CONTACT.get(box.type, (1.0, 1.0))
     try:
-        sol = solve_from_alpha(prior.dims, prior.alpha, box.bbox, calib, size, plane)
+        sol = solve_from_alpha(prior.dims, prior.alpha, box.bbox, calib, size, plane, contact=contact)
         return Lifted(sol.location, sol.rotation_y, np.asarray(prior.dims, dtype=float), 0.5)
     except ValueError:
-        sol = solve_from_alpha(prior.dims, prior.alpha, box.bbox, calib, size, plane, cut_ok=True)
+        sol = solve_from_alpha(prior.dims, prior.alpha, box.bbox, calib, size, plane, cut_ok=True,
+                               contact=contact)
         return Lifted(sol.location, sol.rotation_y, np.asarray(prior.dims, dtype=float), 0.3)
 
 

@@ -15,20 +15,8 @@ import numpy as np
 from kitti.boxes import wrap_angle
 from kitti.calib import Calibration
 
-from .mono import solve_from_alpha
+from .mono import ground_point, solve_from_alpha
 from .types import Box2D, Lifted, Prior
-
-
-def ground_point(u: float, v: float, calib: Calibration, plane: np.ndarray, cam: int = 2) -> np.ndarray:
-    """Where the ray through pixel (u, v) meets the road plane (rect frame); the closed-form inverse
-    of 004's camera model for a known height."""
-    o = calib.image_to_rect(np.array([[u, v]]), np.array([0.0]), cam)[0]
-    p1 = calib.image_to_rect(np.array([[u, v]]), np.array([1.0]), cam)[0]
-    d = p1 - o
-    denom = d @ plane[:3]
-    if abs(denom) < 1e-12:
-        raise ValueError(f"pixel ({u:.1f}, {v:.1f}) looks along the road plane")
-    return o - (o @ plane[:3] + plane[3]) / denom * d
 
 
 def lift_roadside(boxes: list[Box2D], priors: list[Prior], calib: Calibration,

@@ -44,6 +44,31 @@ def test_mono_with_rotation_y_is_exact():
         np.testing.assert_allclose(sol.location, b[:3], atol=1e-6)
 
 
+def test_ground_contact_inside_the_footprint_gives_the_depth():
+    """A vehicle on its tyres: the 2D box's sides and top come from the 3D box, its bottom from the
+    contact points (64 % of the length, 92 % of the width). With the road plane, mono puts the box
+    back to 1 cm; assuming the corners touch the road instead puts it measurably too far."""
+    plane = np.array([0.0, -1.0, 0.0, 1.65])
+    calib, boxes = _random_boxes(30, seed=9)
+    far = []
+    for b, _ in boxes:
+        b = b.copy()
+        b[1] = 1.65  # on the road
+        bb = project_boxes(b[None], calib, SIZE)[0]
+        feet = b.copy()
+        feet[4], feet[5] = 0.92 * b[4], 0.64 * b[5]
+        bb[3] = project_boxes(feet[None], calib, SIZE)[0][3]  # lowest contact point
+        if bb[3] >= SIZE[1] - 3:
+            continue
+        alpha = float(alpha_from_rotation_y(b[6], b[0], b[2]))
+        sol = solve_from_alpha(b[3:6], alpha, bb, calib, SIZE, plane, contact=(0.64, 0.92))
+        assert np.abs(sol.location - b[:3]).max() < 0.01
+        assert sol.box_error_px < 0.05
+        corners = solve_from_alpha(b[3:6], alpha, bb, calib, SIZE, plane)
+        far.append(corners.location[2] - b[2])
+    assert len(far) > 20 and np.median(far) > 0.3
+
+
 def test_truncated_box_needs_the_road():
     calib = Calibration.kitti_default()
     b = np.array([-4.0, 1.65, 4.0, 1.5, 1.6, 4.0, 0.3])  # cut by the left and bottom borders
