@@ -25,14 +25,12 @@ under CLAIM_MIN_SCORE after the others):
 from __future__ import annotations
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
-from scipy.spatial import cKDTree
+import numba
 
 from kitti.boxes import box_corners, wrap_angle
 from kitti.calib import Calibration
 
-from .mono import solve_from_alpha
+from .mono import contact_of, solve_from_alpha
 from .points import FramePoints, rowdot
 from .types import Box2D, Lifted, Prior
 
@@ -65,11 +63,15 @@ ROOF_SEEN = 0.75       # highest return above this share of the prior height: th
 ROOF_GAP = 0.2         # m, the top lies at most this far above the highest roof return (64 beams:
                        # 90 % within 0.14 m on the testbed's cars; sparse scans a little more)
 MERGE_SLACK = 0.3      # m, how much larger than the size prior's diagonal a merged set may be
-LENGTH_STEPS = np.array([0.85, 0.9, 0.95, 1.05, 1.1, 1.15])  # x prior length tried against the 2D box
+LENGTH_GRID = 1.0 + 0.01 * np.arange(-25, 26)  # x prior length tried against the 2D box
+SIGMA_LENGTH = 0.35    # m, the size network's length error on cars (MAE 0.35 m on held-out worlds)
+SIGMA_YAW_PRIOR = np.deg2rad(20.0)  # the network's orientation, against the 2D box's evidence
+SIGMA_SIDE_PX = 2.0    # px, a 2D box side vs the projected 3D box (the body's outline lies 1-3 px
+                       # inside the box's corners on the testbed's cars)
 SMALL_CLASSES = ("Pedestrian", "Cyclist", "Person_sitting")
 
-_COARSE = np.deg2rad(np.arange(0.0, 90.0, 1.0))
-_FINE = np.deg2rad(np.arange(-1.0, 1.0001, 0.1))
+_COARSE = np.deg2rad(np.arange(0.0, 90.0, 3.0))
+_FINE = np.deg2rad(np.arange(-1.5, 1.5001, 0.1))
 
 
 def _pct(v: np.ndarray, q: float) -> float:
@@ -86,10 +88,38 @@ def _bev_clusters(xz: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     key = ij[:, 0] * (int(ij[:, 1].max()) + 1) + ij[:, 1]  # one integer per cell: a 1-D unique
     _, first, inverse = np.unique(key, return_index=True, return_inverse=True)
     cells = (np.floor(xz[first] / CELL) + 0.5) * CELL
-    pairs = cKDTree(cells).query_pairs(CLUSTER_R, output_type="ndarray")
-    n = len(cells)
-    g = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
-    return cells, connected_components(g, directed=False)[1], inverse.reshape(-1)
+    return cells, _link_components(cells, CLUSTER_R), inverse.reshape(-1)
+
+
+@numba.njit(cache=True, nogil=True)
+def _link_components(p: np.ndarray, r: float) -> np.ndarray:
+    """Connected components of the points under 'closer than r' (labels 0, 1, ... in order of
+    each component's first point): a flood fill over all pairs, cheaper than a k-d tree and a
+    sparse graph for the few hundred cells of one frustum."""
+    n = len(p)
+    label = np.full(n, -1, dtype=np.int64)
+    stack = np.empty(n, dtype=np.int64)
+    r2 = r * r
+    k = 0
+    for s in range(n):
+        if label[s] >= 0:
+            continue
+        label[s] = k
+        top = 0
+        stack[0] = s
+        while top >= 0:
+            i = stack[top]
+            top -= 1
+            for j in range(n):
+                if label[j] < 0:
+                    dx = p[i, 0] - p[j, 0]
+                    dz = p[i, 1] - p[j, 1]
+                    if dx * dx + dz * dz <= r2:
+                        label[j] = k
+                        top += 1
+                        stack[top] = j
+        k += 1
+    return label
 
 
 def _closeness(xz: np.ndarray, thetas: np.ndarray) -> np.ndarray:
@@ -134,13 +164,13 @@ def _depth_sigma(d: float) -> float:
 
 def _fallback(box, prior, calib, image_size, plane, cam) -> Lifted:
     sol = solve_from_alpha(prior.dims, prior.alpha, box.bbox, calib, image_size, plane, cam,
-                           cut_ok=True)
+                           cut_ok=True, contact=contact_of(box.type))
     return Lifted(sol.location, sol.rotation_y, np.asarray(prior.dims, dtype=float), quality=0.2)
 
 
 def _faces(pxz: np.ndarray, puv: np.ndarray, e: np.ndarray, e_other: np.ndarray, size: float,
            other: float, grow: float, sensor_xz: np.ndarray, box: Box2D,
-           width: int) -> tuple[float, float, float]:
+           width: int) -> tuple[float, float, float, float]:
     """The centre coordinate along axis e implied by the faces the returns show.
 
     The extreme of the returns facing the sensor is a face when the returns beside it spread
@@ -149,7 +179,9 @@ def _faces(pxz: np.ndarray, puv: np.ndarray, e: np.ndarray, e_other: np.ndarray,
     bonnet returns are no face). An extreme that touches a box side at the image border is cut
     there, and one that ends inside the box without showing its face is cut by an occluder:
     neither is used. When both ends are shown, their distance is the size (within SHRINK below
-    and `grow` above the prior). Returns the centre coordinate, a weight factor and the size.
+    and `grow` above the prior). Returns the centre coordinate, a weight factor, the size, and
+    which way the centre moves along e when the size grows with the anchoring face kept (+1, -1;
+    0 when the returns measure the size).
     """
     p, q = rowdot(pxz, e), rowdot(pxz, e_other)
     lo, hi = _pct(p, 2.0), _pct(p, 98.0)
@@ -176,23 +208,35 @@ def _faces(pxz: np.ndarray, puv: np.ndarray, e: np.ndarray, e_other: np.ndarray,
     if ok[True] and ok[False]:  # both ends shown: the returns measure the size too
         measured = float(np.ptp(p))
         if (1 - SHRINK) * size <= measured <= size + grow:
-            return 0.5 * (p.min() + p.max()), 1.0, measured
-        return near_face + near_sign * size / 2, 1.0, size
+            return 0.5 * (p.min() + p.max()), 1.0, measured, 0.0
+        return near_face + near_sign * size / 2, 1.0, size, near_sign
     if ok[True]:
-        return near_face + near_sign * size / 2, 1.0, size
+        return near_face + near_sign * size / 2, 1.0, size, near_sign
     if ok[False]:
-        return far_face + far_sign * size / 2, 1.0, size
+        return far_face + far_sign * size / 2, 1.0, size, far_sign
     # no face confirmed: returns lie on the surfaces facing the sensor, so the likeliest centre is
     # still half a size beyond the near extreme; a weak row
-    return near_face + near_sign * size / 2, WEAK_FACE, size
+    return near_face + near_sign * size / 2, WEAK_FACE, size, near_sign
+
+
+def _wls2(A: np.ndarray, b: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Weighted least squares in two unknowns by the 2x2 normal equations (rows scaled by w):
+    LAPACK's lstsq costs more in set-up than this whole solve."""
+    Aw = A * w[:, None]
+    bw = b * w
+    a11, a12, a22 = Aw[:, 0] @ Aw[:, 0], Aw[:, 0] @ Aw[:, 1], Aw[:, 1] @ Aw[:, 1]
+    r1, r2 = Aw[:, 0] @ bw, Aw[:, 1] @ bw
+    det = a11 * a22 - a12 * a12
+    return np.array([a22 * r1 - a12 * r2, a11 * r2 - a12 * r1]) / det
 
 
 def _translation(pxz: np.ndarray, puv: np.ndarray, dims: np.ndarray, ry: float, box: Box2D,
                  sensor: np.ndarray, start: np.ndarray, calib: Calibration, image_size,
-                 plane: np.ndarray, cam: int) -> tuple[np.ndarray, np.ndarray, int]:
+                 plane: np.ndarray, cam: int) -> tuple[np.ndarray, np.ndarray, list[bool], np.ndarray]:
     """Bottom-centre (x, y, z) by weighted least squares on faces, 2D sides and the road plane,
-    the size with l and w measured where the returns show both ends, and how many of the two axes
-    a confirmed face pins down."""
+    the size with l and w measured where the returns show both ends, whether a confirmed face
+    pins the centre along the heading and across it, and the (x, z) direction the centre moves per metre of length
+    with the anchoring face kept (zero when the returns measure the length)."""
     h, w, l = dims
     ea = np.array([np.cos(ry), -np.sin(ry)])  # heading in (x, z)
     eb = np.array([np.sin(ry), np.cos(ry)])   # lateral
@@ -200,11 +244,13 @@ def _translation(pxz: np.ndarray, puv: np.ndarray, dims: np.ndarray, ry: float, 
     ray = start[[0, 2]] - sxz
     ray = ray / max(np.linalg.norm(ray), 1e-9)
     rows, rhs, wts = [], [], []
-    sizes, pinned = [], 0
+    sizes, pinned, slides = [], [], []
     for e, eo, size, other, grow in ((ea, eb, l, w, MAX_GROW_L), (eb, ea, w, l, MAX_GROW_W)):
-        centre, weight, size = _faces(pxz, puv, e, eo, size, other, grow, sxz, box, image_size[0])
+        centre, weight, size, slide = _faces(pxz, puv, e, eo, size, other, grow, sxz, box,
+                                             image_size[0])
+        slides.append(0.5 * slide * e)
         sizes.append(size)
-        pinned += weight == 1.0
+        pinned.append(weight == 1.0)
         rows.append(e)
         rhs.append(centre)
         wts.append(weight * (0.2 + 0.8 * abs(ray @ e)) / SIGMA_FACE)
@@ -220,7 +266,7 @@ def _translation(pxz: np.ndarray, puv: np.ndarray, dims: np.ndarray, ry: float, 
         return np.array([r3[0] - r3[1] * n[0] / n[1], r3[2] - r3[1] * n[2] / n[1]]), \
             -(r0 - r3[1] * plane[3] / n[1])
     A0, b0, w0 = np.array(rows), np.array(rhs), np.array(wts)
-    xz, *_ = np.linalg.lstsq(A0 * w0[:, None], b0 * w0, rcond=None)
+    xz = _wls2(A0, b0, w0)
     for _ in range(2):
         # the 2D sides fix the bearing, not the depth: each side's row keeps only its component
         # across the camera ray (else a few pixels of silhouette-vs-box mismatch, which the LS
@@ -244,29 +290,54 @@ def _translation(pxz: np.ndarray, puv: np.ndarray, dims: np.ndarray, ry: float, 
         A = np.vstack([A0] + [np.array(extra_rows)] * bool(extra_rows))
         b = np.concatenate([b0, extra_rhs])
         wv = np.concatenate([w0, extra_w])
-        xz, *_ = np.linalg.lstsq(A * wv[:, None], b * wv, rcond=None)
+        xz = _wls2(A, b, wv)
     y = -(n[0] * xz[0] + n[2] * xz[1] + plane[3]) / n[1]
-    return np.array([xz[0], y, xz[1]]), np.array([h, w, l]), pinned
+    return np.array([xz[0], y, xz[1]]), np.array([h, w, l]), pinned, slides[0]
 
 
-def _side_error(T, dims, ry, box: Box2D, calib: Calibration, image_size, cam: int) -> float:
-    """Mean |projected box side - 2D box side| in pixels over the left and right sides not cut by
-    the image border."""
-    uv, _ = calib.rect_to_image(box_corners(np.array([[*T, *dims, ry]]))[0], cam)
-    errs = [abs(uv[:, 0].min() - box.bbox[0])] if box.bbox[0] > 1.0 else []
+def _length_from_sides(T: np.ndarray, dims: np.ndarray, ry: float, slide: np.ndarray, box: Box2D,
+                       calib: Calibration, image_size, plane: np.ndarray, cam: int) -> tuple[np.ndarray, float]:
+    """A length the returns do not measure, chosen with the 2D box: every length of LENGTH_GRID x the
+    prior, the box's anchoring face kept (the centre slides by `slide` per metre); the one that
+    best balances the outline's misfit to the 2D box's left and right sides (SIGMA_SIDE_PX each)
+    against its distance from the prior (SIGMA_LENGTH) wins. Seen from behind, the sides hardly
+    move with the length and the prior stands; seen from the side, they decide.
+    Returns the centre and the length."""
+    h, w, l = dims
+    lengths = l * LENGTH_GRID
+    xz = T[[0, 2]] + np.outer(lengths - l, slide)
+    y = -(plane[0] * xz[:, 0] + plane[2] * xz[:, 1] + plane[3]) / plane[1]
+    k = len(lengths)
+    boxes = np.column_stack([xz[:, 0], y, xz[:, 1], np.full(k, h), np.full(k, w), lengths, np.full(k, ry)])
+    P = calib.P(cam)
+    c = box_corners(boxes)  # (K, 8, 3)
+    u = (c @ P[0, :3] + P[0, 3]) / (c @ P[2, :3] + P[2, 3])
+    cost = ((lengths - l) / SIGMA_LENGTH) ** 2
+    if box.bbox[0] > 1.0:
+        cost += ((u.min(axis=1) - box.bbox[0]) / SIGMA_SIDE_PX) ** 2
     if box.bbox[2] < image_size[0] - 2.0:
-        errs.append(abs(uv[:, 0].max() - box.bbox[2]))
-    return float(np.mean(errs)) if errs else 0.0
+        cost += ((u.max(axis=1) - box.bbox[2]) / SIGMA_SIDE_PX) ** 2
+    best = int(np.argmin(cost))
+    return boxes[best, :3], float(lengths[best])
 
 
 def _merge(xz: np.ndarray, labels: np.ndarray, seed: int, diag: float) -> np.ndarray:
     """The seed cluster plus the nearby clusters that keep the set car-sized: a far object's
     bumper, bonnet and roof returns fall apart in bird's-eye view but belong together."""
     take = labels == seed
-    others = [k for k in range(labels.max() + 1) if k != seed]
-    dist = {k: np.min(np.linalg.norm(xz[labels == k][:, None] - xz[take][None], axis=2))
-            for k in others}
-    for k in sorted(others, key=dist.get):
+    n = labels.max() + 1
+    lo = np.full((n, 2), np.inf)
+    hi = np.full((n, 2), -np.inf)
+    np.minimum.at(lo, labels, xz)
+    np.maximum.at(hi, labels, xz)
+    # the gap between bounding boxes bounds the distance from below: only clusters within diag
+    # of the seed's box get the exact point-to-point distance
+    gap = np.maximum(0.0, np.maximum(lo - hi[seed], lo[seed] - hi))
+    near = np.flatnonzero(np.hypot(gap[:, 0], gap[:, 1]) <= diag)
+    seed_xz = xz[take]
+    dist = {int(k): float(np.sqrt(((xz[labels == k][:, None] - seed_xz[None]) ** 2).sum(axis=2).min()))
+            for k in near if k != seed}
+    for k in sorted(dist, key=dist.get):
         if dist[k] > diag:
             break
         trial = take | (labels == k)
@@ -274,6 +345,48 @@ def _merge(xz: np.ndarray, labels: np.ndarray, seed: int, diag: float) -> np.nda
         if 2 * np.linalg.norm(pts - pts.mean(axis=0), axis=1).max() <= diag + MERGE_SLACK:
             take = trial
     return take
+
+
+def _box_for_yaw(ry: float, oxz: np.ndarray, ouv: np.ndarray, oheight: np.ndarray, prior: Prior,
+                 small: bool, box: Box2D, sensor: np.ndarray, centroid: np.ndarray,
+                 calib: Calibration, image_size, plane: np.ndarray,
+                 cam: int) -> tuple[np.ndarray, np.ndarray, int]:
+    """Size and bottom centre of the box with yaw ry around the object's returns (steps 4-5):
+    the prior size grown to hold them and brought to the roof, the faces, 2D sides and road
+    fixing the centre, and an unmeasured length chosen with the 2D box."""
+    h, w, l = (float(v) for v in prior.dims)
+    ea = np.array([np.cos(ry), -np.sin(ry)])
+    eb = np.array([np.sin(ry), np.cos(ry)])
+    pa, pb = rowdot(oxz, ea), rowdot(oxz, eb)
+    ext_a, ext_b = _pct(pa, 98.0) - _pct(pa, 2.0), _pct(pb, 98.0) - _pct(pb, 2.0)
+    if not small:  # grow to hold the returns, unless they clearly hold something else too
+        l = ext_a if l < ext_a <= l + MAX_GROW_L else l
+        w = ext_b if w < ext_b <= w + MAX_GROW_W else w
+    top = float(oheight.max())
+    if top > ROOF_SEEN * h:  # the roof is hit: the top lies at most ROOF_GAP above its returns
+        h = float(np.clip(h, top, top + ROOF_GAP))
+    start_y = -(plane[0] * centroid[0] + plane[2] * centroid[1] + plane[3]) / plane[1]
+    start = np.array([centroid[0], start_y, centroid[1]])
+    T, dims, pinned, slide = _translation(oxz, ouv, np.array([h, w, l]), ry, box, sensor, start,
+                                          calib, image_size, plane, cam)
+    if not small and slide.any():  # length not measured: let the 2D box's width choose it
+        T, dims[2] = _length_from_sides(T, dims, ry, slide, box, calib, image_size, plane, cam)
+    return T, dims, sum(pinned)
+
+
+def _side_misfit(T: np.ndarray, dims: np.ndarray, ry: float, box: Box2D, calib: Calibration,
+                 image_size, cam: int) -> float:
+    """Sum of squared pixel distances between the box's projected left/right extremes and the 2D
+    box's sides not cut by the image border."""
+    c = box_corners(np.array([[*T, *dims, ry]]))[0]
+    P = calib.P(cam)
+    u = (c @ P[0, :3] + P[0, 3]) / (c @ P[2, :3] + P[2, 3])
+    err = 0.0
+    if box.bbox[0] > 1.0:
+        err += (u.min() - box.bbox[0]) ** 2
+    if box.bbox[2] < image_size[0] - 2.0:
+        err += (u.max() - box.bbox[2]) ** 2
+    return float(err)
 
 
 def lift_fit(boxes: list[Box2D], priors: list[Prior], pts: FramePoints, calib: Calibration,
@@ -332,30 +445,25 @@ def lift_fit(boxes: list[Box2D], priors: list[Prior], pts: FramePoints, calib: C
         ry_prior = float(wrap_angle(prior.alpha + np.arctan2(centroid[0], centroid[1])))
         small = box.type in SMALL_CLASSES
         ry = ry_prior if small or len(obj) < MIN_LSHAPE else fit_yaw(oxz, ry_prior)
-        ea = np.array([np.cos(ry), -np.sin(ry)])
-        eb = np.array([np.sin(ry), np.cos(ry)])
-        pa, pb = rowdot(oxz, ea), rowdot(oxz, eb)
-        ext_a, ext_b = _pct(pa, 98.0) - _pct(pa, 2.0), _pct(pb, 98.0) - _pct(pb, 2.0)
-        if not small:  # grow to hold the returns, unless they clearly hold something else too
-            l = ext_a if l < ext_a <= l + MAX_GROW_L else l
-            w = ext_b if w < ext_b <= w + MAX_GROW_W else w
-        top = float(pts.height[obj].max())
-        if top > ROOF_SEEN * h:  # the roof is hit: the top lies at most ROOF_GAP above its returns
-            h = float(np.clip(h, top, top + ROOF_GAP))
-        dims = np.array([h, w, l])
-        start_xz = centroid
-        start_y = -(plane[0] * start_xz[0] + plane[2] * start_xz[1] + plane[3]) / plane[1]
-        start = np.array([start_xz[0], start_y, start_xz[1]])
-        T, dims, pinned = _translation(oxz, pts.uv[obj], dims, ry, box, pts.sensor, start, calib,
-                               image_size, plane, cam)
-        if not small and dims[2] == l:  # length not measured: let the 2D box's width choose it
-            best_err = _side_error(T, dims, ry, box, calib, image_size, cam)
-            for cand_l in l * LENGTH_STEPS:
-                T2, d2, p2 = _translation(oxz, pts.uv[obj], np.array([h, w, cand_l]), ry, box,
-                                          pts.sensor, start, calib, image_size, plane, cam)
-                err = _side_error(T2, d2, ry, box, calib, image_size, cam)
-                if err < best_err - 0.5:
-                    T, dims, pinned, best_err = T2, d2, p2, err
+        hyps = [(ry, 0.0)]
+        if not small:
+            # the L-shape (or the network) fixes the axes and the network picks which one is the
+            # length; it is sometimes wrong by ~90 degrees: the other axis is tried too, and the
+            # 2D box's sides weigh against the network's orientation
+            perp = ry + np.pi / 2 * np.array([1.0, -1.0, 1.0, -1.0]) + np.array([0, 0, np.pi, np.pi])
+            perp = float(wrap_angle(perp[np.argmin(np.abs(wrap_angle(perp - ry_prior)))]))
+            hyps.append((perp, float(wrap_angle(2 * (perp - ry_prior)) / 2)))
+            hyps[0] = (ry, float(wrap_angle(2 * (ry - ry_prior)) / 2))
+        best_fit, best_cost = None, np.inf
+        for ry_h, off in hyps:
+            T_h, dims_h, pinned_h = _box_for_yaw(ry_h, oxz, pts.uv[obj], pts.height[obj], prior, small,
+                                                 box, pts.sensor, centroid, calib, image_size, plane,
+                                                 cam)
+            cost = (_side_misfit(T_h, dims_h, ry_h, box, calib, image_size, cam) / SIGMA_SIDE_PX ** 2
+                    + (off / SIGMA_YAW_PRIOR) ** 2) if len(hyps) > 1 else 0.0
+            if cost < best_cost:
+                best_fit, best_cost = (ry_h, T_h, dims_h, pinned_h), cost
+        ry, T, dims, pinned = best_fit
         h, w, l = dims
         # claim this object's returns so a farther box does not take them as its own
         grown = np.array([[T[0], T[1] + CLAIM_MARGIN, T[2], h + 2 * CLAIM_MARGIN,

@@ -35,6 +35,16 @@ BORDER_PX = 1.0
 PLANE_WEIGHT = 1000.0
 CONTACT_WEIGHT = 30.0
 
+# Where vehicles touch the road, as a share of the box's length and width: the tyres, inside the
+# bumpers' overhang (a wheelbase of ~0.64 l and tyre outer edges at ~0.46 w, as on common cars and
+# on the generator's meshes). The ground-contact row uses it; other classes touch at the corners.
+CONTACT = {"Car": (0.64, 0.92), "Van": (0.64, 0.92), "Truck": (0.64, 0.92)}
+
+
+def contact_of(cls: str) -> tuple[float, float]:
+    return CONTACT.get(cls, (1.0, 1.0))
+
+
 _ALL = np.arange(8)
 _TOP = np.arange(4, 8)
 _BOTTOM = np.arange(4)

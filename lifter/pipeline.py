@@ -17,7 +17,7 @@ from kitti.labels import Object3D, read_label, write_label
 from .fit import lift_fit
 from .frustum import lift_frustum
 from .ground import fit_ground_plane, normalise_plane
-from .mono import solve_from_alpha
+from .mono import contact_of, solve_from_alpha
 from .points import frame_points
 from .roadside import lift_roadside
 from .types import Box2D, Lifted, Prior
@@ -28,10 +28,6 @@ LIDAR_METHODS = ("frustum", "fit")
 # their neighbour classes (Van, Person_sitting); lifting the other vehicles too costs nothing there
 # and lets `fit` claim their returns, so a van in front is not mistaken for the car behind it.
 ORACLE_CLASSES = ("Car", "Van", "Truck", "Pedestrian", "Person_sitting", "Cyclist", "Tram")
-# Where vehicles touch the road, as a share of the box's length and width: the tyres, inside the
-# bumpers' overhang (a wheelbase of ~0.64 l and tyre outer edges at ~0.46 w, as on common cars and
-# on the generator's meshes). Mono's ground-contact row uses it; other classes touch at the corners.
-CONTACT = {"Car": (0.64, 0.92), "Van": (0.64, 0.92), "Truck": (0.64, 0.92)}
 FLAT_ROAD = np.array([0.0, -1.0, 0.0, 1.65])  # camera 1.65 m above a level road (KITTI rig)
 
 def oracle_boxes(labels: list[Object3D], classes=ORACLE_CLASSES) -> list[Box2D]:
@@ -69,7 +65,7 @@ def _mono(box: Box2D, prior: Prior, calib: Calibration, size, plane) -> Lifted:
     """Deep3DBox with the road: the 2D box's sides plus the bottom centre on the road plane (from
     planes/, or KITTI's flat road 1.65 m below the camera); a box cut on too many sides by the
     border may also use its border sides."""
-    contact = CONTACT.get(box.type, (1.0, 1.0))
+    contact = contact_of(box.type)
     try:
         sol = solve_from_alpha(prior.dims, prior.alpha, box.bbox, calib, size, plane, contact=contact)
         return Lifted(sol.location, sol.rotation_y, np.asarray(prior.dims, dtype=float), 0.5)

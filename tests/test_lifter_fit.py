@@ -69,7 +69,8 @@ def test_ground_plane_from_the_scan():
     np.testing.assert_allclose(plane, PLANE, atol=2e-3)
 
 
-def test_no_returns_falls_back_to_image_only_on_the_road():
+def test_no_returns_falls_back_to_image_only_on_the_road(monkeypatch):
+    monkeypatch.setattr("lifter.mono.CONTACT", {})  # plain boxes: they touch the road at the corners
     boxes, fr = _scenes(1, seed=4)[0]
     fr.velodyne = fr.velodyne[fr.hit_id < 0]  # the road alone
     out = _lift(fr, 0.0, np.random.default_rng(0), plane=PLANE)

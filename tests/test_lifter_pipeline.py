@@ -26,7 +26,7 @@ def dataset(tmp_path_factory):
                                             ("frustum", 0.3)])
 def test_every_method_writes_every_frame(dataset, tmp_path, method, min_iou, monkeypatch):
     # the synthetic objects are plain boxes: they touch the road at their corners, not on tyres
-    monkeypatch.setattr("lifter.pipeline.CONTACT", {})
+    monkeypatch.setattr("lifter.mono.CONTACT", {})
     n = lift_dataset(dataset, "gt", method, tmp_path, "val", priors="truth", progress=False)
     assert n == 3
     assert sorted(p.name for p in tmp_path.iterdir()) == ["000000.txt", "000001.txt", "000002.txt"]
