@@ -219,6 +219,13 @@ def _faces(pxz: np.ndarray, puv: np.ndarray, e: np.ndarray, e_other: np.ndarray,
     return near_face + near_sign * size / 2, WEAK_FACE, size, near_sign
 
 
+def _columns(pts: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """Image column of rect-frame points (..., 3)."""
+    x, y, z = pts[..., 0], pts[..., 1], pts[..., 2]
+    return ((P[0, 0] * x + P[0, 1] * y + P[0, 2] * z + P[0, 3])
+            / (P[2, 0] * x + P[2, 1] * y + P[2, 2] * z + P[2, 3]))
+
+
 def _wls2(A: np.ndarray, b: np.ndarray, w: np.ndarray) -> np.ndarray:
     """Weighted least squares in two unknowns by the 2x2 normal equations (rows scaled by w):
     LAPACK's lstsq costs more in set-up than this whole solve."""
@@ -267,6 +274,7 @@ def _translation(pxz: np.ndarray, puv: np.ndarray, dims: np.ndarray, ry: float, 
             -(r0 - r3[1] * plane[3] / n[1])
     A0, b0, w0 = np.array(rows), np.array(rhs), np.array(wts)
     xz = _wls2(A0, b0, w0)
+    offs = box_corners(np.array([[0, 0, 0, h, w, l, ry]]))[0]
     for _ in range(2):
         # the 2D sides fix the bearing, not the depth: each side's row keeps only its component
         # across the camera ray (else a few pixels of silhouette-vs-box mismatch, which the LS
@@ -274,11 +282,10 @@ def _translation(pxz: np.ndarray, puv: np.ndarray, dims: np.ndarray, ry: float, 
         y = -(n[0] * xz[0] + n[2] * xz[1] + plane[3]) / n[1]
         T = np.array([xz[0], y, xz[1]])
         r = xz / max(np.linalg.norm(xz), 1e-9)
-        offs = box_corners(np.array([[0, 0, 0, h, w, l, ry]]))[0]
-        uv, _ = calib.rect_to_image(offs + T, cam)
+        u_corner = _columns(offs + T, P)
         extra_rows, extra_rhs, extra_w = [], [], []
-        for u, pick, cut in ((box.bbox[0], np.argmin(uv[:, 0]), box.bbox[0] <= 1.0),
-                             (box.bbox[2], np.argmax(uv[:, 0]), box.bbox[2] >= W - 2.0)):
+        for u, pick, cut in ((box.bbox[0], np.argmin(u_corner), box.bbox[0] <= 1.0),
+                             (box.bbox[2], np.argmax(u_corner), box.bbox[2] >= W - 2.0)):
             if cut:
                 continue
             pr = P[0] - u * P[2]
@@ -309,9 +316,7 @@ def _length_from_sides(T: np.ndarray, dims: np.ndarray, ry: float, slide: np.nda
     y = -(plane[0] * xz[:, 0] + plane[2] * xz[:, 1] + plane[3]) / plane[1]
     k = len(lengths)
     boxes = np.column_stack([xz[:, 0], y, xz[:, 1], np.full(k, h), np.full(k, w), lengths, np.full(k, ry)])
-    P = calib.P(cam)
-    c = box_corners(boxes)  # (K, 8, 3)
-    u = (c @ P[0, :3] + P[0, 3]) / (c @ P[2, :3] + P[2, 3])
+    u = _columns(box_corners(boxes), calib.P(cam))  # (K, 8)
     cost = ((lengths - l) / SIGMA_LENGTH) ** 2
     if box.bbox[0] > 1.0:
         cost += ((u.min(axis=1) - box.bbox[0]) / SIGMA_SIDE_PX) ** 2
@@ -321,15 +326,20 @@ def _length_from_sides(T: np.ndarray, dims: np.ndarray, ry: float, slide: np.nda
     return boxes[best, :3], float(lengths[best])
 
 
-def _merge(xz: np.ndarray, labels: np.ndarray, seed: int, diag: float) -> np.ndarray:
+def _cluster_bounds(xz: np.ndarray, labels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per cluster, the lower and upper corners of its bird's-eye bounding box."""
+    order = np.argsort(labels, kind="stable")
+    starts = np.flatnonzero(np.r_[True, np.diff(labels[order]) > 0])
+    return (np.minimum.reduceat(xz[order], starts, axis=0),
+            np.maximum.reduceat(xz[order], starts, axis=0))
+
+
+def _merge(xz: np.ndarray, labels: np.ndarray, seed: int, diag: float,
+           bounds: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
     """The seed cluster plus the nearby clusters that keep the set car-sized: a far object's
     bumper, bonnet and roof returns fall apart in bird's-eye view but belong together."""
     take = labels == seed
-    n = labels.max() + 1
-    lo = np.full((n, 2), np.inf)
-    hi = np.full((n, 2), -np.inf)
-    np.minimum.at(lo, labels, xz)
-    np.maximum.at(hi, labels, xz)
+    lo, hi = bounds
     # the gap between bounding boxes bounds the distance from below: only clusters within diag
     # of the seed's box get the exact point-to-point distance
     gap = np.maximum(0.0, np.maximum(lo - hi[seed], lo[seed] - hi))
@@ -378,9 +388,7 @@ def _side_misfit(T: np.ndarray, dims: np.ndarray, ry: float, box: Box2D, calib: 
                  image_size, cam: int) -> float:
     """Sum of squared pixel distances between the box's projected left/right extremes and the 2D
     box's sides not cut by the image border."""
-    c = box_corners(np.array([[*T, *dims, ry]]))[0]
-    P = calib.P(cam)
-    u = (c @ P[0, :3] + P[0, 3]) / (c @ P[2, :3] + P[2, 3])
+    u = _columns(box_corners(np.array([[*T, *dims, ry]]))[0], calib.P(cam))
     err = 0.0
     if box.bbox[0] > 1.0:
         err += (u.min() - box.bbox[0]) ** 2
@@ -429,8 +437,9 @@ def lift_fit(boxes: list[Box2D], priors: list[Prior], pts: FramePoints, calib: C
         seeds = [k for k in np.flatnonzero(counts >= MIN_SEED)]
         seeds = sorted(seeds, key=lambda k: -score(labels == k))[:MAX_SEEDS]
         best, best_score = None, 0.0
+        bounds = _cluster_bounds(cells, cell_labels)
         for k in seeds:  # the likeliest clusters, each grown by its car-sized neighbours
-            m = _merge(cells, cell_labels, k, diag)[inverse]
+            m = _merge(cells, cell_labels, k, diag, bounds)[inverse]
             if m.sum() < MIN_POINTS:
                 continue
             sc = score(m)
@@ -456,11 +465,13 @@ def lift_fit(boxes: list[Box2D], priors: list[Prior], pts: FramePoints, calib: C
             hyps[0] = (ry, float(wrap_angle(2 * (ry - ry_prior)) / 2))
         best_fit, best_cost = None, np.inf
         for ry_h, off in hyps:
+            prior_cost = (off / SIGMA_YAW_PRIOR) ** 2
+            if prior_cost >= best_cost:  # its misfit to the 2D box could only add to that
+                continue
             T_h, dims_h, pinned_h = _box_for_yaw(ry_h, oxz, pts.uv[obj], pts.height[obj], prior, small,
                                                  box, pts.sensor, centroid, calib, image_size, plane,
                                                  cam)
-            cost = (_side_misfit(T_h, dims_h, ry_h, box, calib, image_size, cam) / SIGMA_SIDE_PX ** 2
-                    + (off / SIGMA_YAW_PRIOR) ** 2) if len(hyps) > 1 else 0.0
+            cost = prior_cost + _side_misfit(T_h, dims_h, ry_h, box, calib, image_size, cam) / SIGMA_SIDE_PX ** 2
             if cost < best_cost:
                 best_fit, best_cost = (ry_h, T_h, dims_h, pinned_h), cost
         ry, T, dims, pinned = best_fit

@@ -50,8 +50,9 @@ def fit_ground_plane(points_rect: np.ndarray, seed: int = 0,
     if not ok.any():
         return flat
     n = n[ok] / norm[ok, None]
-    d = -np.einsum("ij,ij->i", n, a[ok])
-    counts = (np.abs(np.einsum("ij,kj->ik", pts, n) + d) < INLIER_M).sum(axis=0)
+    d = -(n * a[ok]).sum(axis=1)
+    dist = pts[:, :1] * n[:, 0] + pts[:, 1:2] * n[:, 1] + pts[:, 2:3] * n[:, 2] + d  # (N, K)
+    counts = (np.abs(dist) < INLIER_M).sum(axis=0)
     best = normalise_plane(np.append(n[np.argmax(counts)], d[np.argmax(counts)]))
     # refine by least squares, re-selecting the inliers: a sample from the dense near returns is
     # slightly off in pitch, and only the refit brings the far road back inside the threshold
@@ -61,7 +62,8 @@ def fit_ground_plane(points_rect: np.ndarray, seed: int = 0,
             break
         centre = inliers.mean(axis=0)
         q = inliers - centre
-        _, vecs = np.linalg.eigh(np.einsum("ni,nj->ij", q, q))
+        scatter = np.array([[q[:, i] @ q[:, j] for j in range(3)] for i in range(3)])
+        _, vecs = np.linalg.eigh(scatter)
         n = vecs[:, 0]  # smallest scatter: the normal
         best = normalise_plane(np.append(n, -np.dot(n, centre)))
     return best

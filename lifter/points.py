@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from kitti.calib import Calibration
@@ -32,35 +33,50 @@ WEDGE_TAN = 1.2  # tan(50 deg)
 
 
 def rowdot(pts: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """pts @ v without BLAS (see _affine)."""
+    """pts @ v column by column: a (N,3) @ (3,) product through BLAS costs more in thread
+    start-up than in arithmetic on a busy machine."""
     out = pts[:, 0] * v[0]
     for k in range(1, len(v)):
         out = out + pts[:, k] * v[k]
     return out
 
 
-def _affine(m: np.ndarray, pts: np.ndarray) -> np.ndarray:
-    """m[:3, :3] @ p + m[:3, 3] for every row, column by column: a (N,3) @ (3,3) product through
-    BLAS costs more in thread start-up than in arithmetic on a busy machine."""
-    x, y, z = pts[:, 0], pts[:, 1], pts[:, 2]
-    return np.stack([m[r, 0] * x + m[r, 1] * y + m[r, 2] * z + m[r, 3] for r in range(3)], axis=1)
-
-
 def frame_points(velodyne: np.ndarray, calib: Calibration, plane: np.ndarray | None,
                  cam: int = 2) -> FramePoints:
     """The returns inside a 100-degree wedge around the camera's viewing direction (KITTI's colour
     camera sees about 80 degrees) and in front of the camera."""
-    v = np.asarray(velodyne)
+    v = np.asarray(velodyne)  # (N, >=3), any float type: read in place
     axis = calib.velo_to_rect[2, :3]  # the camera's optical axis in the LiDAR frame
     ax, ay = axis[:2] / max(np.hypot(axis[0], axis[1]), 1e-9)
-    along = v[:, 0] * ax + v[:, 1] * ay
-    across = np.abs(v[:, 1] * ax - v[:, 0] * ay)
-    v = v[(along > 0) & (across < WEDGE_TAN * along), :3].astype(np.float64)
-    rect = _affine(calib.velo_to_rect, v)
-    rect = rect[rect[:, 2] > MIN_DEPTH]
-    P = calib.P(cam)
-    hom = _affine(P, rect)
-    uv = hom[:, :2] / hom[:, 2:3]
+    rect, uv = _to_camera(v, np.ascontiguousarray(calib.velo_to_rect[:3], dtype=np.float64),
+                          np.ascontiguousarray(calib.P(cam), dtype=np.float64), ax, ay,
+                          WEDGE_TAN, MIN_DEPTH)
     height = rowdot(rect, plane[:3]) + plane[3] if plane is not None else np.full(len(rect), np.nan)
     sensor = calib.lidar_to_rect(np.zeros((1, 3)))[0]
     return FramePoints(rect, uv, height, sensor)
+
+
+@numba.njit(cache=True, nogil=True)
+def _to_camera(v, m, P, ax, ay, wedge_tan, min_depth):
+    """One pass over the scan: the wedge test, the rectified camera frame and the pixel of every
+    return kept (numpy's version makes a dozen full-size temporaries of a 120k-return scan)."""
+    n = v.shape[0]
+    rect = np.empty((n, 3))
+    uv = np.empty((n, 2))
+    k = 0
+    for i in range(n):
+        x, y, z = v[i, 0], v[i, 1], v[i, 2]
+        along = x * ax + y * ay
+        if along <= 0.0 or abs(y * ax - x * ay) >= wedge_tan * along:
+            continue
+        rz = m[2, 0] * x + m[2, 1] * y + m[2, 2] * z + m[2, 3]
+        if rz <= min_depth:
+            continue
+        rx = m[0, 0] * x + m[0, 1] * y + m[0, 2] * z + m[0, 3]
+        ry = m[1, 0] * x + m[1, 1] * y + m[1, 2] * z + m[1, 3]
+        w = P[2, 0] * rx + P[2, 1] * ry + P[2, 2] * rz + P[2, 3]
+        uv[k, 0] = (P[0, 0] * rx + P[0, 1] * ry + P[0, 2] * rz + P[0, 3]) / w
+        uv[k, 1] = (P[1, 0] * rx + P[1, 1] * ry + P[1, 2] * rz + P[1, 3]) / w
+        rect[k, 0], rect[k, 1], rect[k, 2] = rx, ry, rz
+        k += 1
+    return rect[:k].copy(), uv[:k].copy()
