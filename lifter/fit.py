@@ -30,7 +30,7 @@ import numba
 from kitti.boxes import box_corners, wrap_angle
 from kitti.calib import Calibration
 
-from .mono import contact_of, solve_from_alpha
+from .mono import contact_of, solve_from_alpha, solve_translation
 from .points import FramePoints, rowdot
 from .types import Box2D, Lifted, Prior
 
@@ -65,6 +65,9 @@ ROOF_GAP = 0.2         # m, the top lies at most this far above the highest roof
 MERGE_SLACK = 0.3      # m, how much larger than the size prior's diagonal a merged set may be
 LENGTH_GRID = 1.0 + 0.01 * np.arange(-25, 26)  # x prior length tried against the 2D box
 SIGMA_LENGTH = 0.35    # m, the size network's length error on cars (MAE 0.35 m on held-out worlds)
+LOW_RETURNS = 0.4      # share of the height: no return below it, and the face may be unseen
+IMAGE_DEPTH_K = 0.15   # returns this many image-depth sigmas behind the road contact are
+                       # bonnet, boot or windows: the image's depth is taken
 SIGMA_YAW_PRIOR = np.deg2rad(20.0)  # the network's orientation, against the 2D box's evidence
 SIGMA_SIDE_PX = 2.0    # px, a 2D box side vs the projected 3D box (the body's outline lies 1-3 px
                        # inside the box's corners on the testbed's cars)
@@ -160,6 +163,12 @@ def _depth_sigma(d: float) -> float:
     """Uncertainty of the road depth under a box's bottom edge: 0.5 m, 5 %, and the depth change
     of a 2 px error in the edge (d^2 / (f h), f ~ 720 px, camera ~1.65 m above the road)."""
     return 0.5 + 0.05 * d + 2.0 * d * d / (720.0 * 1.65)
+
+
+def _image_depth_sigma(d: float) -> float:
+    """Depth error of the ground contact under a 2D box: 1.5 px of the bottom edge (d^2 / (f h),
+    f ~ 720 px, camera ~1.65 m up) plus 2 % for the size and orientation behind the contact."""
+    return 1.5 * d * d / (720.0 * 1.65) + 0.02 * d
 
 
 def _fallback(box, prior, calib, image_size, plane, cam) -> Lifted:
@@ -381,7 +390,30 @@ def _box_for_yaw(ry: float, oxz: np.ndarray, ouv: np.ndarray, oheight: np.ndarra
                                           calib, image_size, plane, cam)
     if not small and slide.any():  # length not measured: let the 2D box's width choose it
         T, dims[2] = _length_from_sides(T, dims, ry, slide, box, calib, image_size, plane, cam)
+    if not small and oheight.min() > LOW_RETURNS * dims[0] and box.bbox[3] < image_size[1] - 2.0:
+        T = _image_depth_check(T, dims, ry, box, sensor, calib, image_size, plane, cam)
     return T, dims, sum(pinned)
+
+
+def _image_depth_check(T: np.ndarray, dims: np.ndarray, ry: float, box: Box2D, sensor: np.ndarray,
+                       calib: Calibration, image_size, plane: np.ndarray, cam: int) -> np.ndarray:
+    """No return on the lower part of the object: a sparse scan's few rings crossed only its
+    bonnet, boot or windows, and the extreme the fit took for a face may lie behind the real one.
+    The road under the 2D box's bottom edge says where the object stands; returns cannot lie in
+    front of that but may lie behind it: when they do by more than the image's depth error, the
+    centre moves along the ray to the image's depth."""
+    try:
+        T_img = solve_translation(dims, ry, box.bbox, calib, image_size, plane, cam,
+                                  contact=contact_of(box.type)).location
+    except ValueError:
+        return T
+    ray = T[[0, 2]] - sensor[[0, 2]]
+    d_fit = np.linalg.norm(ray)
+    d_img = np.linalg.norm(T_img[[0, 2]] - sensor[[0, 2]])
+    if d_fit - d_img <= IMAGE_DEPTH_K * _image_depth_sigma(d_img):
+        return T
+    xz = sensor[[0, 2]] + ray * (d_img / d_fit)
+    return np.array([xz[0], -(plane[0] * xz[0] + plane[2] * xz[1] + plane[3]) / plane[1], xz[1]])
 
 
 def _side_misfit(T: np.ndarray, dims: np.ndarray, ry: float, box: Box2D, calib: Calibration,

@@ -5,13 +5,19 @@ import numpy as np
 import pytest
 from lifter_synth import IMAGE_SIZE, PLANE, make_frame
 
-from kitti.boxes import wrap_angle
+from kitti.boxes import box_corners, wrap_angle
 from kitti.iou import iou_2d
 from lifter.fit import lift_fit
 from lifter.ground import fit_ground_plane
 from lifter.mono import solve_from_alpha
 from lifter.points import frame_points
 from lifter.types import Box2D, Prior
+
+
+@pytest.fixture(autouse=True)
+def plain_boxes(monkeypatch):
+    """The synthetic cars are plain boxes: they touch the road at their corners, not on tyres."""
+    monkeypatch.setattr("lifter.mono.CONTACT", {})
 
 
 def _scenes(n_frames, seed, max_z=30.0):
@@ -63,14 +69,35 @@ def test_fit_stays_sane_with_few_beams(beams):
     assert max(errs) < 0.5
 
 
+def test_returns_only_behind_the_face_take_the_depth_from_the_image(monkeypatch):
+    """A sparse scan whose one ring crossed a car's roof, 1.7 m behind its near face (as a ring
+    over a bonnet or boot does): the fit alone puts the near face there; the road contact under the
+    2D box brings it back to the truth."""
+    boxes = np.array([[2.0, 1.65, 12.0, 1.5, 1.7, 4.2, -np.pi / 2]])  # driving away, seen from behind
+    fr = make_frame(boxes)
+    rect = fr.calib.lidar_to_rect(fr.velodyne[:, :3].astype(float))
+    on_car = fr.hit_id == 0
+    roof = on_car & (rect[:, 1] < 1.65 - 1.5 + 0.01) & (np.abs(rect[:, 2] - 11.6) < 0.1)
+    roof[np.flatnonzero(roof)[6:]] = False  # fewer than MIN_LSHAPE: the network's yaw stands
+    assert roof.sum() == 6
+    fr.velodyne = fr.velodyne[~on_car | roof]
+    near_face = {}
+    for k in (1e9, 0.15):  # the image check off, then as shipped
+        monkeypatch.setattr("lifter.fit.IMAGE_DEPTH_K", k)
+        out = _lift(fr, 0.0, np.random.default_rng(0), plane=PLANE)[0]
+        near_face[k] = box_corners(np.array([[*out.location, *out.dims, out.rotation_y]]))[0][:, 2].min()
+    truth = 12.0 - 4.2 / 2
+    assert near_face[1e9] - truth > 1.0
+    assert abs(near_face[0.15] - truth) < 0.1
+
+
 def test_ground_plane_from_the_scan():
     _, fr = _scenes(1, seed=3)[0]
     plane = fit_ground_plane(fr.calib.lidar_to_rect(fr.velodyne[:, :3].astype(float)))
     np.testing.assert_allclose(plane, PLANE, atol=2e-3)
 
 
-def test_no_returns_falls_back_to_image_only_on_the_road(monkeypatch):
-    monkeypatch.setattr("lifter.mono.CONTACT", {})  # plain boxes: they touch the road at the corners
+def test_no_returns_falls_back_to_image_only_on_the_road():
     boxes, fr = _scenes(1, seed=4)[0]
     fr.velodyne = fr.velodyne[fr.hit_id < 0]  # the road alone
     out = _lift(fr, 0.0, np.random.default_rng(0), plane=PLANE)
