@@ -8,6 +8,7 @@ augmentation and the network.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Sequence
 
 import numpy as np
 from tqdm import tqdm
@@ -37,24 +38,28 @@ def labels_to_arrays(objects: list[Object3D]) -> tuple[np.ndarray, np.ndarray]:
 
 
 class DetectionData:
-    """Frames of one split, cached at the scale that letterboxes them into `input_size` (w, h)."""
+    """Frames of one split of one or more roots (in order), cached at the scale that letterboxes
+    them into `input_size` (w, h)."""
 
-    def __init__(self, root: str, split: str | None, input_size: tuple[int, int], progress: bool = True):
-        self.kitti = KittiDataset(root)
-        self.root = root
-        self.ids = self.kitti.ids(split)
-        if not self.ids:
-            raise ValueError(f"{root}: split {split!r} has no frames")
+    def __init__(self, roots: str | Sequence[str], split: str | None, input_size: tuple[int, int],
+                 progress: bool = True):
+        self.roots = (roots,) if isinstance(roots, str) else tuple(roots)
+        self.root = ", ".join(self.roots)  # for messages
         self.input_size = input_size
         self.samples: list[Sample] = []
-        for fid in tqdm(self.ids, desc=f"loading {root}", disable=not progress, leave=False):
-            img = self.kitti.image(fid)
-            h, w = img.shape[:2]
-            lb = Letterbox.fit(w, h, *input_size)
-            boxes, classes = labels_to_arrays(self.kitti.labels(fid))
-            resized = lb.apply(img)[lb.pad_y:lb.pad_y + lb.new_h, lb.pad_x:lb.pad_x + lb.new_w].copy()
-            sx, sy = lb.scale
-            self.samples.append(Sample(resized, boxes * np.array([sx, sy, sx, sy]), classes))
+        for root in self.roots:
+            kitti = KittiDataset(root)
+            ids = kitti.ids(split)
+            if not ids:
+                raise ValueError(f"{root}: split {split!r} has no frames")
+            for fid in tqdm(ids, desc=f"loading {root}", disable=not progress, leave=False):
+                img = kitti.image(fid)
+                h, w = img.shape[:2]
+                lb = Letterbox.fit(w, h, *input_size)
+                boxes, classes = labels_to_arrays(kitti.labels(fid))
+                resized = lb.apply(img)[lb.pad_y:lb.pad_y + lb.new_h, lb.pad_x:lb.pad_x + lb.new_w].copy()
+                sx, sy = lb.scale
+                self.samples.append(Sample(resized, boxes * np.array([sx, sy, sx, sy]), classes))
 
     def __len__(self) -> int:
         return len(self.samples)

@@ -32,7 +32,7 @@ from kitti.io import atomic_write_text
 
 @dataclass(frozen=True)
 class TrainConfig:
-    data: str
+    data: tuple[str, ...]              # training roots (a single path is accepted too)
     out: str
     preset: str = "small"
     epochs: int = 30
@@ -59,6 +59,10 @@ class TrainConfig:
     progress: bool = True
 
     def __post_init__(self):
+        if isinstance(self.data, str):
+            object.__setattr__(self, "data", (self.data,))
+        if not self.data:
+            raise ValueError("at least one training root is needed")
         if self.preset not in PRESETS:
             raise ValueError(f"unknown preset {self.preset!r}; choose one of {sorted(PRESETS)}")
         if self.schedule not in ("cosine", "step"):
@@ -169,7 +173,7 @@ def train(cfg: TrainConfig, resume: bool = False, stop_after: int | None = None)
         cfg = replace(cfg, img_size=tuple(ck["input_size"]))
     elif init is not None and cfg.img_size is None:
         cfg = replace(cfg, img_size=tuple(init["input_size"]))
-    img_size = cfg.img_size or _default_size(cfg.data, cfg.train_split)
+    img_size = cfg.img_size or _default_size(cfg.data[0], cfg.train_split)
     data = DetectionData(cfg.data, cfg.train_split, img_size, cfg.progress)
     if ck is not None:
         mcfg = ModelConfig.from_dict(ck["model_cfg"])
@@ -233,7 +237,7 @@ def train(cfg: TrainConfig, resume: bool = False, stop_after: int | None = None)
         row = {"epoch": epoch + 1, "lr": opt.param_groups[0]["lr"], "loss": avg[0], "box": avg[1],
                "obj": avg[2], "cls": avg[3], "seconds": time.time() - t0}
         if cfg.eval_every and ((epoch + 1) % cfg.eval_every == 0 or epoch + 1 == cfg.epochs):
-            res = evaluate_model(ema.ema, img_size, cfg.val_data or cfg.data, cfg.val_split)
+            res = evaluate_model(ema.ema, img_size, cfg.val_data or cfg.data[0], cfg.val_split)
             for c in CLASSES:
                 for d, v in zip(("easy", "moderate", "hard"), res.ap[c]["2d"]["R40"]):
                     row[f"{c}_2d_R40_{d}"] = float(v)

@@ -12,8 +12,9 @@ def _split(value: str) -> str | None:
 
 
 @click.command("train-detector")
-@click.option("--data", required=True, type=click.Path(exists=True, file_okay=False, path_type=Path),
-              help="KITTI-format training root.")
+@click.option("--data", required=True, multiple=True,
+              type=click.Path(exists=True, file_okay=False, path_type=Path),
+              help="KITTI-format training root; repeat to train on several (their frames in order).")
 @click.option("--out", required=True, type=click.Path(file_okay=False, path_type=Path),
               help="Run folder: last.pt (each epoch), weights.pt (final EMA weights), history.csv/png.")
 @click.option("--preset", default="small", show_default=True, type=click.Choice(["small", "s", "vehicle"]),
@@ -42,7 +43,7 @@ def _split(value: str) -> str | None:
               help="Last epochs without mosaic/zoom (plain letterboxed images).")
 @click.option("--train-split", default="train", show_default=True, help="ImageSets name, or 'all'.")
 @click.option("--val-data", type=click.Path(exists=True, file_okay=False, path_type=Path),
-              help="Evaluation root [default: --data].")
+              help="Evaluation root [default: the first --data].")
 @click.option("--val-split", default="val", show_default=True, help="ImageSets name, or 'all'.")
 @click.option("--eval-every", default=1, show_default=True, type=click.IntRange(0),
               help="Epochs between 2D AP evaluations (0: never).")
@@ -51,13 +52,14 @@ def _split(value: str) -> str | None:
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(0))
 @click.option("--threads", default=2, show_default=True, type=click.IntRange(1))
 @click.option("--resume", is_flag=True, help="Continue from OUT/last.pt.")
-def train_detector(data: Path, out: Path, preset: str, epochs: int, img_size, batch: int, lr: float,
+def train_detector(data: tuple[Path, ...], out: Path, preset: str, epochs: int, img_size, batch: int, lr: float,
                    momentum: float, weight_decay: float, schedule: str, warmup_epochs: float,
                    activation: str, box_loss: str, mosaic: float, scale: float, fliplr: float, hsv: bool,
                    mixup: str, mixup_prob: float, mixup_iou: float, close_mosaic: int, train_split: str,
                    val_data: Path | None, val_split: str, eval_every: int, init_weights: Path | None,
                    seed: int, threads: int, resume: bool) -> None:
-    """Train the FlexiNet 2D detector (Car incl. Van, Pedestrian, Cyclist) on DATA."""
+    """Train the FlexiNet 2D detector (Car incl. Van, Pedestrian, Cyclist) on DATA (one or more
+    roots; the split applies to each)."""
     from detector.augment import AugmentConfig
     from detector.train import TrainConfig, train
     from kitti.errors import KittiFormatError
@@ -66,7 +68,7 @@ def train_detector(data: Path, out: Path, preset: str, epochs: int, img_size, ba
         aug = AugmentConfig(mosaic=mosaic, scale=scale, fliplr=fliplr,
                             hsv=AugmentConfig().hsv if hsv else (0.0, 0.0, 0.0),
                             mixup=mixup, mixup_prob=mixup_prob, mixup_iou=mixup_iou)
-        cfg = TrainConfig(data=str(data), out=str(out), preset=preset, epochs=epochs,
+        cfg = TrainConfig(data=tuple(str(d) for d in data), out=str(out), preset=preset, epochs=epochs,
                           img_size=tuple(img_size) if img_size else None, batch=batch, lr=lr,
                           momentum=momentum, weight_decay=weight_decay, warmup_epochs=warmup_epochs,
                           schedule=schedule, activation=activation, box_loss=box_loss, augment=aug,

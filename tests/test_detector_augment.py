@@ -13,6 +13,16 @@ def toy(tmp_path_factory):
     return DetectionData(str(root), "train", (256, 96), progress=False)
 
 
+def test_several_roots_give_their_frames_in_order(toy, tmp_path):
+    other = write_toy_dataset(tmp_path / "other", 4, seed=12, size=(256, 96))
+    one = DetectionData(str(other), "train", (256, 96), progress=False)
+    both = DetectionData([toy.roots[0], str(other)], "train", (256, 96), progress=False)
+    assert len(both) == len(toy) + len(one)
+    for a, b in zip(both.samples, toy.samples + one.samples):
+        assert np.array_equal(a.image, b.image) and np.array_equal(a.boxes, b.boxes)
+        assert np.array_equal(a.classes, b.classes)
+
+
 def _colour_inside(img, box):
     """Median colour of the inner half of a box."""
     x1, y1, x2, y2 = box
