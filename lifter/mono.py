@@ -80,6 +80,30 @@ def _project(pts: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return hom[..., :2] / hom[..., 2:3], hom[..., 2]
 
 
+def _up(plane: np.ndarray) -> np.ndarray:
+    n = np.asarray(plane[:3], dtype=float) / np.linalg.norm(plane[:3])
+    return -n if n[1] > 0 else n  # camera y points down: up has a negative y
+
+
+def standing_corners(h: float, w: float, l: float, rotation_y: float,
+                     up: np.ndarray | None = None) -> np.ndarray:
+    """(8, 3) corners, in kitti.boxes order, of a box standing on a surface with normal `up`
+    (rect frame; None: the camera's own up, -y), relative to its bottom-face centre. Its heading
+    lies in the surface with the x-z direction (cos ry, -sin ry), which is how a label gives it.
+    For a camera tilted against the road (the 004 gantry) the box then stands on the road, not on
+    the camera's x-z plane: the box a KITTI label describes is drawn upright in the camera frame,
+    but the object it stands for is upright on the road, and that is what the image shows."""
+    if up is None:
+        return box_corners(np.array([[0, 0, 0, h, w, l, rotation_y]]))[0]
+    c, s = np.cos(rotation_y), np.sin(rotation_y)
+    head = np.array([c, (up[2] * -s + up[0] * c) / -up[1], -s])  # in the surface: up . head = 0
+    head /= np.linalg.norm(head)
+    side = np.cross(up, head)
+    u = np.array([[0.5, 0, 0.5], [0.5, 0, -0.5], [-0.5, 0, -0.5], [-0.5, 0, 0.5],
+                  [0.5, 1, 0.5], [0.5, 1, -0.5], [-0.5, 1, -0.5], [-0.5, 1, 0.5]])
+    return np.outer(u[:, 0] * l, head) + np.outer(u[:, 1] * h, up) + np.outer(u[:, 2] * w, side)
+
+
 def _lowest_foot(feet: np.ndarray, bbox: np.ndarray, calib: Calibration, plane: np.ndarray,
                  cam: int) -> np.ndarray:
     """Index (as a 1-array) of the ground contact that projects lowest: the feet placed around the
@@ -106,8 +130,9 @@ def solve_translation(dims: np.ndarray, rotation_y: float, bbox: np.ndarray, cal
     P = calib.P(cam)
     W, H = image_size
     x1, y1, x2, y2 = (float(v) for v in bbox)
-    offs = box_corners(np.array([[0, 0, 0, h, w, l, rotation_y]]))[0]  # (8, 3) from bottom centre
-    feet = box_corners(np.array([[0, 0, 0, h, w * contact[1], l * contact[0], rotation_y]]))[0]
+    up = None if plane is None else _up(plane)
+    offs = standing_corners(h, w, l, rotation_y, up)  # (8, 3) from the bottom centre
+    feet = standing_corners(h, w * contact[1], l * contact[0], rotation_y, up)
     # (axis, pixel, admissible corners, constrains?). With the road plane and a visible bottom edge,
     # the ground contact fixes the depth; the top edge would only add the predicted height's error
     # (7 % of the depth for a 0.1 m error on a car), so it is left out.

@@ -1,6 +1,7 @@
 """The gantry rig of 004: the camera's height, pan and tilt fix the road plane in the camera frame
 (planes/ gives it as a·x + b·y + c·z + d = 0 in rect coordinates: d is the height, the normal the
-tilt and roll), and an object stands on the road (bottom corners at road height, top at h).
+tilt and roll), and an object stands on the road (its box upright on the road, not on the tilted
+camera's x-z plane; vehicles touch it with their tyres, see `mono`).
 
 The 2D box's bottom-centre ray meets the road at the object's nearest visible bottom point; the
 box of the predicted size and orientation is then placed on the road so that its projection fits
@@ -15,7 +16,7 @@ import numpy as np
 from kitti.boxes import wrap_angle
 from kitti.calib import Calibration
 
-from .mono import ground_point, solve_from_alpha
+from .mono import contact_of, ground_point, solve_from_alpha
 from .types import Box2D, Lifted, Prior
 
 
@@ -25,7 +26,8 @@ def lift_roadside(boxes: list[Box2D], priors: list[Prior], calib: Calibration,
     for box, prior in zip(boxes, priors):
         dims = np.asarray(prior.dims, dtype=float)
         try:
-            sol = solve_from_alpha(dims, prior.alpha, box.bbox, calib, image_size, plane, cam)
+            sol = solve_from_alpha(dims, prior.alpha, box.bbox, calib, image_size, plane, cam,
+                                   contact=contact_of(box.type))
             out.append(Lifted(sol.location, sol.rotation_y, dims))
         except ValueError:  # cut by the border on three sides: the bottom-centre ray alone
             g = ground_point(box.centre[0], box.bbox[3], calib, plane, cam)

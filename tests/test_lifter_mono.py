@@ -6,7 +6,7 @@ import pytest
 
 from kitti.boxes import alpha_from_rotation_y, project_boxes
 from kitti.calib import Calibration
-from lifter.mono import solve_from_alpha, solve_translation
+from lifter.mono import solve_from_alpha, solve_translation, standing_corners
 from lifter.roadside import ground_point, lift_roadside
 from lifter.types import Box2D, Prior
 
@@ -81,9 +81,11 @@ def test_truncated_box_needs_the_road():
     np.testing.assert_allclose(sol.location, b[:3], atol=1e-6)
 
 
-def test_roadside_back_projection_on_a_tilted_gantry_camera():
+def test_roadside_back_projection_on_a_tilted_gantry_camera(monkeypatch):
     """004: a camera 6 m up, tilted 20 degrees down: the bottom-centre ray meets the road where the
-    geometry says, and the box placed on the road fits its 2D box."""
+    geometry says, and a box standing upright on the road (tilted in the camera frame) is put back
+    from its 2D box."""
+    monkeypatch.setattr("lifter.mono.CONTACT", {})  # a plain box: it touches the road at its corners
     base = Calibration.kitti_default()
     tilt = np.deg2rad(20.0)
     c, s = np.cos(tilt), np.sin(tilt)
@@ -101,7 +103,10 @@ def test_roadside_back_projection_on_a_tilted_gantry_camera():
     assert abs(g @ plane[:3] + plane[3]) < 1e-9
     uv, _ = calib.rect_to_image(g[None])
     np.testing.assert_allclose(uv[0], [700.0, 300.0], atol=1e-9)
-    bb = project_boxes(b[None], calib, SIZE)[0]
+    corners = loc + standing_corners(1.5, 1.7, 4.2, ry, plane[:3])
+    assert np.allclose((corners[:4] @ plane[:3]) + plane[3], 0) and np.allclose((corners[4:] @ plane[:3]) + plane[3], 1.5)
+    uv, _ = calib.rect_to_image(corners)
+    bb = np.array([*uv.min(axis=0), *uv.max(axis=0)])
     alpha = float(alpha_from_rotation_y(ry, loc[0], loc[2]))
     out = lift_roadside([Box2D("Car", bb, 1.0)], [Prior(b[3:6], alpha)], calib, SIZE, plane)[0]
     assert abs(out.location @ plane[:3] + plane[3]) < 1e-6
