@@ -213,12 +213,16 @@ def run_point_job(job: PointJob) -> dict:
 
 
 def models_key() -> str:
-    """Digest of the shipped detector and lifter weights: results made with other weights are
-    never taken from the cache."""
+    """Digest of the shipped detector and lifter weights and of the two packages' code: results
+    made with other weights or another version of the detector or the lifter are never taken from
+    the cache."""
+    import detector
+    import lifter
     from detector.infer import DEFAULT_WEIGHTS as DETECTOR
     from lifter.predictor import DEFAULT_WEIGHTS as LIFTER
 
-    return stages.digest(DETECTOR, LIFTER)
+    code = [f for pkg in (detector, lifter) for f in sorted(Path(pkg.__file__).parent.glob("*.py"))]
+    return stages.digest(DETECTOR, LIFTER, *code)
 
 
 def execute(p: Plan, backend: Backend, workers: int = 1) -> list[tuple[Point, dict]]:

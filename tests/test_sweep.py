@@ -110,3 +110,19 @@ axes: {beams: [16], beam_mode: [dropped], weather: [null, {fog_extinction: 0.03}
     assert keys == ["hdl64e-64b-native-max-rain10", "hdl64e-64b-native-max-fog0.03",
                     "hdl64e-64b-native-max", "hdl64e-16b-dropped-max", "hdl64e-16b-dropped-max-fog0.03",
                     "hdl64e-16b-dropped-max-rain10"]
+
+
+def test_cached_results_are_keyed_by_the_lifter_code(tmp_path, monkeypatch):
+    """A change to the lifter's code gives a new cache key: stale lifted boxes are never reused."""
+    import lifter
+
+    from testbed.sweep import models_key
+    pkg = tmp_path / "lifter"
+    pkg.mkdir()
+    for f in Path(lifter.__file__).parent.glob("*.py"):
+        (pkg / f.name).write_bytes(f.read_bytes())
+    monkeypatch.setattr(lifter, "__file__", str(pkg / "__init__.py"))
+    before = models_key()
+    assert models_key() == before
+    (pkg / "fit.py").write_text((pkg / "fit.py").read_text() + "\n# changed\n")
+    assert models_key() != before
