@@ -68,7 +68,7 @@ def draw_examples(p, results, folder: Path, n: int) -> list[Path]:
     from kitti.dataset import KittiDataset
     from kitti.io import atomic_path
 
-    from .draw import draw_frame, plt
+    from .draw import MIN_SCORE, draw_frame, plt
     from .stages import is_done
 
     chosen = None
@@ -93,7 +93,8 @@ def draw_examples(p, results, folder: Path, n: int) -> list[Path]:
     drawn = []
     for fid in ids:
         fig = draw_frame(ds, fid, pred, title=f"frame {fid}: truth solid, {chosen.method} "
-                         f"({chosen.scan.key if chosen.scan else 'no LiDAR'}, {chosen.boxes} boxes) dashed")
+                         f"({chosen.scan.key if chosen.scan else 'no LiDAR'}, {chosen.boxes} boxes, "
+                         f"score >= {MIN_SCORE:g}) dashed")
         path = folder / f"frame_{fid}.png"
         with atomic_path(path) as tmp:
             fig.savefig(tmp, format="png", bbox_inches="tight")

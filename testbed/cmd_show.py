@@ -17,8 +17,10 @@ from kitti.io import atomic_path
               help="Output PNG.")
 @click.option("--pred", "pred", type=click.Path(exists=True, file_okay=False, path_type=Path),
               help="Folder of KITTI result files to draw dashed over the truth.")
+@click.option("--min-score", default=0.3, show_default=True, type=click.FloatRange(0, 1),
+              help="Draw only predictions scoring at least this (result files keep a low-score tail).")
 @click.option("--part", default="training", show_default=True, type=click.Choice(["training", "testing"]))
-def show(dataset: Path, frame: str, out: Path, pred: Path | None, part: str) -> None:
+def show(dataset: Path, frame: str, out: Path, pred: Path | None, min_score: float, part: str) -> None:
     """Draw FRAME of DATASET: the image with the labelled 3D boxes projected, and a bird's-eye
     view of the LiDAR points with the boxes, side by side."""
     from .draw import draw_frame, plt
@@ -27,7 +29,7 @@ def show(dataset: Path, frame: str, out: Path, pred: Path | None, part: str) -> 
     ds = KittiDataset(dataset, part)
     if not ds.image_path(fid).exists():
         raise click.BadParameter(f"no image {ds.image_path(fid)}", param_hint="--frame")
-    fig = draw_frame(ds, fid, pred)
+    fig = draw_frame(ds, fid, pred, min_score=min_score)
     with atomic_path(out) as tmp:
         fig.savefig(tmp, format="png", bbox_inches="tight")
     plt.close(fig)

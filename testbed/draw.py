@@ -91,16 +91,21 @@ def draw_bev(ax, points: np.ndarray | None, calib: Calibration, objects: list[Ob
     ax.set_ylabel("x (m)")
 
 
+MIN_SCORE = 0.3  # result files keep a long low-score tail for AP; pictures show the confident boxes
+
+
 def draw_frame(dataset: KittiDataset, fid: str, pred_dir: str | Path | None = None,
-               title: str | None = None):
-    """Figure with the image (truth solid, predictions dashed) and the bird's-eye view."""
+               title: str | None = None, min_score: float = MIN_SCORE):
+    """Figure with the image (truth solid, predictions scoring at least `min_score` dashed) and
+    the bird's-eye view."""
     image = dataset.image(fid)
     calib = dataset.calib(fid)
     label_path = dataset.path("label_2", fid, "txt")
     truth = read_label(label_path) if label_path.exists() else []
     pred = []
     if pred_dir is not None and (Path(pred_dir) / f"{fid}.txt").exists():
-        pred = read_label(Path(pred_dir) / f"{fid}.txt")
+        pred = [o for o in read_label(Path(pred_dir) / f"{fid}.txt")
+                if o.score is None or o.score >= min_score]
     h, w = image.shape[:2]
     fig = plt.figure(figsize=(16, 16 * 0.3), dpi=110)
     gs = fig.add_gridspec(1, 2, width_ratios=[w / h, 1.0], wspace=0.04)
@@ -111,5 +116,6 @@ def draw_frame(dataset: KittiDataset, fid: str, pred_dir: str | Path | None = No
     draw_bev(ax_bev, dataset.velodyne(fid), calib, truth, "-")
     draw_bev(ax_bev, None, calib, pred, "--")
     ax_img.set_title(title or f"{dataset.root.name} frame {fid}: truth solid"
-                     + (", predictions dashed" if pred_dir else ""), fontsize=9)
+                     + (f", predictions scoring >= {min_score:g} dashed" if pred_dir else ""),
+                     fontsize=9)
     return fig
