@@ -140,7 +140,7 @@ def fit_yaw(xz: np.ndarray, ry_prior: float) -> float:
     """The yaw of the rectangle the returns outline, of the four it allows the one nearest ry_prior."""
     if len(xz) > MAX_LSHAPE_POINTS:
         xz = xz[:: int(np.ceil(len(xz) / MAX_LSHAPE_POINTS))]
-    xz = xz - xz.mean(axis=0)
+    xz = xz - xz.sum(axis=0) / len(xz)
     coarse = _COARSE[np.argmax(_closeness(xz, _COARSE))]
     fine = coarse + _FINE
     theta = fine[np.argmax(_closeness(xz, fine))]
@@ -208,7 +208,7 @@ def _faces(pxz: np.ndarray, puv: np.ndarray, e: np.ndarray, e_other: np.ndarray,
             ok[near] = False
             continue
         # reaching a 2D side only proves an end where moving along e moves the image point enough
-        a = pxz[at].mean(axis=0)
+        a = pxz[at].sum(axis=0) / at.sum()
         px_per_m = abs(FOCAL_PX * ((a[0] + e[0]) / (a[1] + e[1]) - a[0] / a[1]))
         ends = px_per_m * FACE_MAX_SLIDE >= tol and any(np.abs(u - s).min() < tol for s in sides)
         ok[near] = ends or (near and np.ptp(q[at]) >= FACE_SPREAD * other)
@@ -338,7 +338,7 @@ def _length_from_sides(T: np.ndarray, dims: np.ndarray, ry: float, slide: np.nda
 def _cluster_bounds(xz: np.ndarray, labels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Per cluster, the lower and upper corners of its bird's-eye bounding box."""
     order = np.argsort(labels, kind="stable")
-    starts = np.flatnonzero(np.r_[True, np.diff(labels[order]) > 0])
+    starts = np.flatnonzero(np.concatenate(([True], np.diff(labels[order]) > 0)))
     return (np.minimum.reduceat(xz[order], starts, axis=0),
             np.maximum.reduceat(xz[order], starts, axis=0))
 
@@ -361,7 +361,8 @@ def _merge(xz: np.ndarray, labels: np.ndarray, seed: int, diag: float,
             break
         trial = take | (labels == k)
         pts = xz[trial]
-        if 2 * np.linalg.norm(pts - pts.mean(axis=0), axis=1).max() <= diag + MERGE_SLACK:
+        d = pts - pts.sum(axis=0) / len(pts)
+        if 2 * np.sqrt((d * d).sum(axis=1).max()) <= diag + MERGE_SLACK:
             take = trial
     return take
 
@@ -429,11 +430,29 @@ def _side_misfit(T: np.ndarray, dims: np.ndarray, ry: float, box: Box2D, calib: 
     return float(err)
 
 
+def _seed_clusters(labels: np.ndarray, u: np.ndarray, rng: np.ndarray, width: float, road_d: float,
+                   sigma: float) -> np.ndarray:
+    """The MAX_SEEDS clusters (of MIN_SEED returns or more) that best explain the box: wide in the
+    image, many returns, near the depth the road predicts (`score` below, for every cluster at
+    once)."""
+    order = np.argsort(labels, kind="stable")
+    starts = np.flatnonzero(np.concatenate(([True], np.diff(labels[order]) > 0)))
+    counts = np.diff(np.append(starts, len(labels)))
+    ptp = np.maximum.reduceat(u[order], starts) - np.minimum.reduceat(u[order], starts)
+    gap = np.minimum.reduceat(rng[order], starts) - road_d
+    score = ((np.minimum(1.0, ptp / width) + 0.05) * np.minimum(1.0, counts / 10)
+             * np.exp(-0.5 * (gap / sigma) ** 2))
+    seeds = np.flatnonzero(counts >= MIN_SEED)
+    return seeds[np.argsort(-score[seeds], kind="stable")][:MAX_SEEDS]
+
+
 def lift_fit(boxes: list[Box2D], priors: list[Prior], pts: FramePoints, calib: Calibration,
              image_size: tuple[int, int], plane: np.ndarray, cam: int = 2) -> list[Lifted]:
     n = len(boxes)
     out: list[Lifted | None] = [None] * n
     keep = (pts.height > ROAD_CUT) & (pts.height < MAX_HEIGHT)
+    above = np.flatnonzero(keep)  # the returns that may belong to a road user
+    above_uv = pts.uv[above]
     free = keep.copy()  # not yet claimed by a nearer box
     road_d = np.array([_ground_depth(b, calib, plane, cam) for b in boxes])
     # confident boxes first, nearest first, and only they claim returns: a detector's low-score
@@ -442,8 +461,9 @@ def lift_fit(boxes: list[Box2D], priors: list[Prior], pts: FramePoints, calib: C
     order = np.lexsort((road_d, ~confident))
     for i in order:
         box, prior = boxes[i], priors[i]
-        inbox = pts.in_box(box.bbox)
-        inbox = inbox[keep[inbox]]
+        x1, y1, x2, y2 = box.bbox
+        u, v = above_uv[:, 0], above_uv[:, 1]
+        inbox = above[(u >= x1) & (u <= x2) & (v >= y1) & (v <= y2)]
         cand = inbox[free[inbox]]
         if len(cand) < MIN_POINTS:
             out[i] = _fallback(box, prior, calib, image_size, plane, cam)
@@ -465,9 +485,7 @@ def lift_fit(boxes: list[Box2D], priors: list[Prior], pts: FramePoints, calib: C
             gap = rng_all[m].min() - road_d[i]
             return (coverage + 0.05) * min(1.0, m.sum() / 10) * np.exp(-0.5 * (gap / sigma) ** 2)
 
-        counts = np.bincount(labels)
-        seeds = [k for k in np.flatnonzero(counts >= MIN_SEED)]
-        seeds = sorted(seeds, key=lambda k: -score(labels == k))[:MAX_SEEDS]
+        seeds = _seed_clusters(labels, u_all, rng_all, width, road_d[i], sigma)
         best, best_score = None, 0.0
         bounds = _cluster_bounds(cells, cell_labels)
         for k in seeds:  # the likeliest clusters, each grown by its car-sized neighbours
@@ -482,7 +500,7 @@ def lift_fit(boxes: list[Box2D], priors: list[Prior], pts: FramePoints, calib: C
             continue
         obj = cand[best]
         oxz = xz[best]
-        centroid = oxz.mean(axis=0)
+        centroid = oxz.sum(axis=0) / len(oxz)
         ry_prior = float(wrap_angle(prior.alpha + np.arctan2(centroid[0], centroid[1])))
         small = box.type in SMALL_CLASSES
         ry = ry_prior if small or len(obj) < MIN_LSHAPE else fit_yaw(oxz, ry_prior)

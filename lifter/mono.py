@@ -180,7 +180,7 @@ def solve_translation(dims: np.ndarray, rotation_y: float, bbox: np.ndarray, cal
 
 def solve_from_alpha(dims: np.ndarray, alpha: float, bbox: np.ndarray, calib: Calibration,
                      image_size: tuple[int, int], plane: np.ndarray | None = None, cam: int = 2,
-                     iters: int = 8, tol: float = 1e-6, cut_ok: bool = False,
+                     iters: int = 8, tol: float = 1e-5, cut_ok: bool = False,
                      contact: tuple[float, float] = (1.0, 1.0)) -> MonoSolution:
     """As `solve_translation`, for a local orientation alpha: rotation_y = alpha + atan2(x, z)
     depends on the translation, so start from the ray through the 2D box centre and iterate (the
