@@ -25,7 +25,7 @@ from detector.boxes import input_size_for
 from detector.data import CLASSES, DetectionData
 from detector.infer import Detector, save_checkpoint
 from detector.loss import DetectionLoss
-from detector.model import FlexiNet, ModelConfig, PRESETS
+from detector.model import PRESETS, FlexiNet, ModelConfig
 from kitti.dataset import KittiDataset
 from kitti.io import atomic_write_text
 
@@ -282,6 +282,7 @@ def write_history(out: Path, history: list[dict], plot: bool = True) -> None:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
     from kitti.io import atomic_path
     ep = [r["epoch"] for r in history]
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 4))

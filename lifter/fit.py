@@ -24,8 +24,8 @@ under CLAIM_MIN_SCORE after the others):
 
 from __future__ import annotations
 
-import numpy as np
 import numba
+import numpy as np
 
 from kitti.boxes import box_corners, wrap_angle
 from kitti.calib import Calibration
@@ -79,7 +79,7 @@ _FINE = np.deg2rad(np.arange(-1.5, 1.5001, 0.1))
 
 def _pct(v: np.ndarray, q: float) -> float:
     """The q-th percentile (nearest rank): np.percentile's interpolation costs ten times more."""
-    k = int(round(q / 100.0 * (len(v) - 1)))
+    k = round(q / 100.0 * (len(v) - 1))
     return float(np.partition(v, k)[k])
 
 
@@ -430,18 +430,23 @@ def _side_misfit(T: np.ndarray, dims: np.ndarray, ry: float, box: Box2D, calib: 
     return float(err)
 
 
+def _explain_score(u_span, count, gap, width: float, sigma: float):
+    """How well a set of returns explains a 2D box: wide in the image (its column span against the
+    box's width), many returns, its nearest return near the depth the road predicts (gap, m)."""
+    return ((np.minimum(1.0, u_span / width) + 0.05) * np.minimum(1.0, count / 10)
+            * np.exp(-0.5 * (gap / sigma) ** 2))
+
+
 def _seed_clusters(labels: np.ndarray, u: np.ndarray, rng: np.ndarray, width: float, road_d: float,
                    sigma: float) -> np.ndarray:
-    """The MAX_SEEDS clusters (of MIN_SEED returns or more) that best explain the box: wide in the
-    image, many returns, near the depth the road predicts (`score` below, for every cluster at
-    once)."""
+    """The MAX_SEEDS clusters (of MIN_SEED returns or more) that best explain the box, scored all
+    at once."""
     order = np.argsort(labels, kind="stable")
     starts = np.flatnonzero(np.concatenate(([True], np.diff(labels[order]) > 0)))
     counts = np.diff(np.append(starts, len(labels)))
     ptp = np.maximum.reduceat(u[order], starts) - np.minimum.reduceat(u[order], starts)
     gap = np.minimum.reduceat(rng[order], starts) - road_d
-    score = ((np.minimum(1.0, ptp / width) + 0.05) * np.minimum(1.0, counts / 10)
-             * np.exp(-0.5 * (gap / sigma) ** 2))
+    score = _explain_score(ptp, counts, gap, width, sigma)
     seeds = np.flatnonzero(counts >= MIN_SEED)
     return seeds[np.argsort(-score[seeds], kind="stable")][:MAX_SEEDS]
 
@@ -480,11 +485,6 @@ def lift_fit(boxes: list[Box2D], priors: list[Prior], pts: FramePoints, calib: C
         rng_all = np.linalg.norm(xz - pts.sensor[[0, 2]], axis=1)
         u_all = pts.uv[cand, 0]
 
-        def score(m: np.ndarray) -> float:
-            coverage = min(1.0, np.ptp(u_all[m]) / width)
-            gap = rng_all[m].min() - road_d[i]
-            return (coverage + 0.05) * min(1.0, m.sum() / 10) * np.exp(-0.5 * (gap / sigma) ** 2)
-
         seeds = _seed_clusters(labels, u_all, rng_all, width, road_d[i], sigma)
         best, best_score = None, 0.0
         bounds = _cluster_bounds(cells, cell_labels)
@@ -492,7 +492,8 @@ def lift_fit(boxes: list[Box2D], priors: list[Prior], pts: FramePoints, calib: C
             m = _merge(cells, cell_labels, k, diag, bounds)[inverse]
             if m.sum() < MIN_POINTS:
                 continue
-            sc = score(m)
+            sc = float(_explain_score(np.ptp(u_all[m]), m.sum(), rng_all[m].min() - road_d[i],
+                                      width, sigma))
             if sc > best_score:
                 best, best_score = m, sc
         if best is None or best_score < 0.02:

@@ -105,7 +105,7 @@ def lift_frame(method: str, boxes: list[Box2D], priors: list[Prior], calib: Cali
         lifted = lift_fit(boxes, priors, pts, calib, image_size, road)
     out = []
     for b, lf in zip(boxes, lifted):
-        x, y, z = lf.location
+        x, _, z = lf.location
         h, w, l = lf.dims
         out.append(Object3D(b.type, -1.0, -1, float(alpha_from_rotation_y(lf.rotation_y, x, z)),
                             b.bbox, float(h), float(w), float(l), lf.location, lf.rotation_y,

@@ -19,7 +19,7 @@ class FramePoints:
     height: np.ndarray  # (N,) above the road plane (NaN when no plane was given)
     sensor: np.ndarray  # (3,) LiDAR origin in the rect frame: the rays come from here
 
-    def with_plane(self, plane: np.ndarray) -> "FramePoints":
+    def with_plane(self, plane: np.ndarray) -> FramePoints:
         return FramePoints(self.rect, self.uv, rowdot(self.rect, plane[:3]) + plane[3], self.sensor)
 
     def in_box(self, bbox: np.ndarray) -> np.ndarray:

@@ -8,13 +8,13 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from kitti.boxes import EDGES, box_corners  # noqa: E402
-from kitti.calib import Calibration  # noqa: E402
-from kitti.dataset import KittiDataset  # noqa: E402
-from kitti.labels import Object3D, read_label  # noqa: E402
+from kitti.boxes import EDGES, box_corners
+from kitti.calib import Calibration
+from kitti.dataset import KittiDataset
+from kitti.labels import Object3D, read_label
 
 CLASS_COLORS = {"Car": "#00d000", "Van": "#00a0a0", "Truck": "#a0a000", "Pedestrian": "#ff3030",
                 "Person_sitting": "#ff8080", "Cyclist": "#ffd000", "Tram": "#b000b0",

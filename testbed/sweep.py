@@ -102,7 +102,7 @@ class ScanConfig:
         rng = "max" if self.max_range is None else f"{self.max_range:g}m"
         return f"{self.lidar}-{self.beams}b-{self.mode}-{rng}{weather_suffix(self.weather)}"
 
-    def parent(self) -> "ScanConfig":
+    def parent(self) -> ScanConfig:
         """The 64-beam native scan a dropped scan keeps rings of."""
         return ScanConfig(self.lidar, 64, "native", self.max_range, self.weather)
 

@@ -8,9 +8,16 @@ from pathlib import Path
 import pytest
 
 from testbed.backends import LocalBackend, RayBackend
-from testbed.stages import digest
 from testbed.report import metric_rows, range_table, summary_table
-from testbed.sweep import Point, ScanConfig, SweepSpecError, load_sweep, native_sensor, plan
+from testbed.stages import digest
+from testbed.sweep import (
+    Point,
+    ScanConfig,
+    SweepSpecError,
+    load_sweep,
+    native_sensor,
+    plan,
+)
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -115,7 +122,6 @@ axes: {beams: [16], beam_mode: [dropped], weather: [null, {fog_extinction: 0.03}
 def test_cached_results_are_keyed_by_the_lifter_code(tmp_path, monkeypatch):
     """A change to the lifter's code gives a new cache key: stale lifted boxes are never reused."""
     import lifter
-
     from testbed.sweep import models_key
     pkg = tmp_path / "lifter"
     pkg.mkdir()
