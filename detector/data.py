@@ -44,7 +44,6 @@ class DetectionData:
     def __init__(self, roots: str | Sequence[str], split: str | None, input_size: tuple[int, int],
                  progress: bool = True):
         self.roots = (roots,) if isinstance(roots, str) else tuple(roots)
-        self.root = ", ".join(self.roots)  # for messages
         self.input_size = input_size
         self.samples: list[Sample] = []
         for root in self.roots:

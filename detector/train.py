@@ -134,7 +134,7 @@ def collate(samples) -> tuple[torch.Tensor, torch.Tensor]:
 def fit_anchors(data: DetectionData, seed: int) -> tuple[tuple[float, float], ...]:
     wh = data.box_sizes()
     if len(wh) < 9:
-        raise ValueError(f"{data.root}: only {len(wh)} labelled boxes of {CLASSES}; need at least 9 for anchors")
+        raise ValueError(f"{', '.join(data.roots)}: only {len(wh)} labelled boxes of {CLASSES}; need at least 9 for anchors")
     a = kmeans_anchors(wh, 9, np.random.default_rng(seed))
     return tuple((float(w), float(h)) for w, h in a)
 

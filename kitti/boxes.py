@@ -14,8 +14,8 @@ import numpy as np
 from .calib import Calibration
 
 # Unit corners in the object frame (x along l, y down, z along w); 0-3 bottom face, 4-7 top.
-_UNIT = np.array([[0.5, 0, 0.5], [0.5, 0, -0.5], [-0.5, 0, -0.5], [-0.5, 0, 0.5],
-                  [0.5, -1, 0.5], [0.5, -1, -0.5], [-0.5, -1, -0.5], [-0.5, -1, 0.5]])
+UNIT_CORNERS = np.array([[0.5, 0, 0.5], [0.5, 0, -0.5], [-0.5, 0, -0.5], [-0.5, 0, 0.5],
+                         [0.5, -1, 0.5], [0.5, -1, -0.5], [-0.5, -1, -0.5], [-0.5, -1, 0.5]])
 # The 12 edges as corner index pairs.
 EDGES = np.array([[0, 1], [1, 2], [2, 3], [3, 0], [4, 5], [5, 6], [6, 7], [7, 4],
                   [0, 4], [1, 5], [2, 6], [3, 7]])
@@ -38,7 +38,7 @@ def rot_y(ry) -> np.ndarray:
 def box_corners(boxes7: np.ndarray) -> np.ndarray:
     """(N, 8, 3) corners in the rectified camera frame."""
     b = np.asarray(boxes7, dtype=float).reshape(-1, 7)
-    local = _UNIT[None] * np.stack([b[:, 5], b[:, 3], b[:, 4]], axis=1)[:, None, :]
+    local = UNIT_CORNERS[None] * np.stack([b[:, 5], b[:, 3], b[:, 4]], axis=1)[:, None, :]
     return np.einsum("nij,nkj->nki", rot_y(b[:, 6]), local) + b[:, None, :3]
 
 

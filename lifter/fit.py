@@ -52,7 +52,7 @@ SIGMA_CENTROID = 3.0   # m, weak pull to the returns' centroid
 FACE_BAND = 0.25       # m, returns this close to an extreme are "at" it
 FACE_SPREAD = 0.3      # of the face's width: returns spreading this far across it show the face
 FACE_MAX_SLIDE = 0.3   # m, how far an end may hide within the 2D side tolerance
-FOCAL_PX = 720.0       # px, a KITTI-like focal length: only for that sensitivity
+FOCAL_PX = 720.0       # px, a KITTI-like focal length: only for pixel-to-metre sensitivities
 WEAK_FACE = 0.1        # weight of an unconfirmed near face, relative to a confirmed one
 FACE_TOL_PX = 3.0      # px, an extreme this close to a 2D side is the outline's end
 FACE_TOL_FRAC = 0.06   # ... or this share of the box width
@@ -159,16 +159,22 @@ def _ground_depth(box: Box2D, calib: Calibration, plane: np.ndarray, cam: int) -
     return float(min(-plane[3] / denom, 200.0))
 
 
+def _depth_per_px(d: float) -> float:
+    """How far the road point under a box's bottom edge moves per pixel of that edge at depth d:
+    d^2 / (f h), f ~ FOCAL_PX, camera ~1.65 m above the road."""
+    return d * d / (FOCAL_PX * 1.65)
+
+
 def _depth_sigma(d: float) -> float:
     """Uncertainty of the road depth under a box's bottom edge: 0.5 m, 5 %, and the depth change
-    of a 2 px error in the edge (d^2 / (f h), f ~ 720 px, camera ~1.65 m above the road)."""
-    return 0.5 + 0.05 * d + 2.0 * d * d / (720.0 * 1.65)
+    of a 2 px error in the edge."""
+    return 0.5 + 0.05 * d + 2.0 * _depth_per_px(d)
 
 
 def _image_depth_sigma(d: float) -> float:
-    """Depth error of the ground contact under a 2D box: 1.5 px of the bottom edge (d^2 / (f h),
-    f ~ 720 px, camera ~1.65 m up) plus 2 % for the size and orientation behind the contact."""
-    return 1.5 * d * d / (720.0 * 1.65) + 0.02 * d
+    """Depth error of the ground contact under a 2D box: 1.5 px of the bottom edge plus 2 % for
+    the size and orientation behind the contact."""
+    return 1.5 * _depth_per_px(d) + 0.02 * d
 
 
 def _fallback(box, prior, calib, image_size, plane, cam) -> Lifted:
@@ -228,6 +234,12 @@ def _faces(pxz: np.ndarray, puv: np.ndarray, e: np.ndarray, e_other: np.ndarray,
     return near_face + near_sign * size / 2, WEAK_FACE, size, near_sign
 
 
+def _on_road(xz: np.ndarray, plane: np.ndarray) -> np.ndarray:
+    """(..., 3) points of the road plane at bird's-eye positions xz (..., 2)."""
+    x, z = xz[..., 0], xz[..., 1]
+    return np.stack([x, -(plane[0] * x + plane[2] * z + plane[3]) / plane[1], z], axis=-1)
+
+
 def _columns(pts: np.ndarray, P: np.ndarray) -> np.ndarray:
     """Image column of rect-frame points (..., 3)."""
     x, y, z = pts[..., 0], pts[..., 1], pts[..., 2]
@@ -248,11 +260,11 @@ def _wls2(A: np.ndarray, b: np.ndarray, w: np.ndarray) -> np.ndarray:
 
 def _translation(pxz: np.ndarray, puv: np.ndarray, dims: np.ndarray, ry: float, box: Box2D,
                  sensor: np.ndarray, start: np.ndarray, calib: Calibration, image_size,
-                 plane: np.ndarray, cam: int) -> tuple[np.ndarray, np.ndarray, list[bool], np.ndarray]:
+                 plane: np.ndarray, cam: int) -> tuple[np.ndarray, np.ndarray, int, np.ndarray]:
     """Bottom-centre (x, y, z) by weighted least squares on faces, 2D sides and the road plane,
-    the size with l and w measured where the returns show both ends, whether a confirmed face
-    pins the centre along the heading and across it, and the (x, z) direction the centre moves per metre of length
-    with the anchoring face kept (zero when the returns measure the length)."""
+    the size with l and w measured where the returns show both ends, how many of the two axes a
+    confirmed face pins down, and the (x, z) direction the centre moves per metre of length with
+    the anchoring face kept (zero when the returns measure the length)."""
     h, w, l = dims
     ea = np.array([np.cos(ry), -np.sin(ry)])  # heading in (x, z)
     eb = np.array([np.sin(ry), np.cos(ry)])   # lateral
@@ -260,13 +272,13 @@ def _translation(pxz: np.ndarray, puv: np.ndarray, dims: np.ndarray, ry: float, 
     ray = start[[0, 2]] - sxz
     ray = ray / max(np.linalg.norm(ray), 1e-9)
     rows, rhs, wts = [], [], []
-    sizes, pinned, slides = [], [], []
+    sizes, pinned, slides = [], 0, []
     for e, eo, size, other, grow in ((ea, eb, l, w, MAX_GROW_L), (eb, ea, w, l, MAX_GROW_W)):
         centre, weight, size, slide = _faces(pxz, puv, e, eo, size, other, grow, sxz, box,
                                              image_size[0])
         slides.append(0.5 * slide * e)
         sizes.append(size)
-        pinned.append(weight == 1.0)
+        pinned += weight == 1.0
         rows.append(e)
         rhs.append(centre)
         wts.append(weight * (0.2 + 0.8 * abs(ray @ e)) / SIGMA_FACE)
@@ -288,8 +300,7 @@ def _translation(pxz: np.ndarray, puv: np.ndarray, dims: np.ndarray, ry: float, 
         # the 2D sides fix the bearing, not the depth: each side's row keeps only its component
         # across the camera ray (else a few pixels of silhouette-vs-box mismatch, which the LS
         # would absorb cheaply along the ray, pull the box by a metre in depth)
-        y = -(n[0] * xz[0] + n[2] * xz[1] + plane[3]) / n[1]
-        T = np.array([xz[0], y, xz[1]])
+        T = _on_road(xz, plane)
         r = xz / max(np.linalg.norm(xz), 1e-9)
         u_corner = _columns(offs + T, P)
         extra_rows, extra_rhs, extra_w = [], [], []
@@ -307,12 +318,12 @@ def _translation(pxz: np.ndarray, puv: np.ndarray, dims: np.ndarray, ry: float, 
         b = np.concatenate([b0, extra_rhs])
         wv = np.concatenate([w0, extra_w])
         xz = _wls2(A, b, wv)
-    y = -(n[0] * xz[0] + n[2] * xz[1] + plane[3]) / n[1]
-    return np.array([xz[0], y, xz[1]]), np.array([h, w, l]), pinned, slides[0]
+    return _on_road(xz, plane), np.array([h, w, l]), pinned, slides[0]
 
 
-def _length_from_sides(T: np.ndarray, dims: np.ndarray, ry: float, slide: np.ndarray, box: Box2D,
-                       calib: Calibration, image_size, plane: np.ndarray, cam: int) -> tuple[np.ndarray, float]:
+def _length_from_sides(T: np.ndarray, dims: np.ndarray, ry: float, slide: np.ndarray,
+                       box: Box2D, calib: Calibration, image_size, plane: np.ndarray,
+                       cam: int) -> tuple[np.ndarray, float]:
     """A length the returns do not measure, chosen with the 2D box: every length of LENGTH_GRID x the
     prior, the box's anchoring face kept (the centre slides by `slide` per metre); the one that
     best balances the outline's misfit to the 2D box's left and right sides (SIGMA_SIDE_PX each)
@@ -321,24 +332,25 @@ def _length_from_sides(T: np.ndarray, dims: np.ndarray, ry: float, slide: np.nda
     Returns the centre and the length."""
     h, w, l = dims
     lengths = l * LENGTH_GRID
-    xz = T[[0, 2]] + np.outer(lengths - l, slide)
-    y = -(plane[0] * xz[:, 0] + plane[2] * xz[:, 1] + plane[3]) / plane[1]
+    centres = _on_road(T[[0, 2]] + np.outer(lengths - l, slide), plane)
     k = len(lengths)
-    boxes = np.column_stack([xz[:, 0], y, xz[:, 1], np.full(k, h), np.full(k, w), lengths, np.full(k, ry)])
-    u = _columns(box_corners(boxes), calib.P(cam))  # (K, 8)
-    cost = ((lengths - l) / SIGMA_LENGTH) ** 2
-    if box.bbox[0] > 1.0:
-        cost += ((u.min(axis=1) - box.bbox[0]) / SIGMA_SIDE_PX) ** 2
-    if box.bbox[2] < image_size[0] - 2.0:
-        cost += ((u.max(axis=1) - box.bbox[2]) / SIGMA_SIDE_PX) ** 2
+    boxes = np.column_stack([centres, np.full(k, h), np.full(k, w), lengths, np.full(k, ry)])
+    cost = (((lengths - l) / SIGMA_LENGTH) ** 2
+            + _side_misfit(boxes, box, calib, image_size, cam) / SIGMA_SIDE_PX ** 2)
     best = int(np.argmin(cost))
-    return boxes[best, :3], float(lengths[best])
+    return centres[best], float(lengths[best])
+
+
+def _groups(labels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Order that sorts the items by cluster, and where each cluster starts in it: for
+    `ufunc.reduceat` per cluster (the labels run 0..k-1, every one present)."""
+    order = np.argsort(labels, kind="stable")
+    return order, np.flatnonzero(np.concatenate(([True], np.diff(labels[order]) > 0)))
 
 
 def _cluster_bounds(xz: np.ndarray, labels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Per cluster, the lower and upper corners of its bird's-eye bounding box."""
-    order = np.argsort(labels, kind="stable")
-    starts = np.flatnonzero(np.concatenate(([True], np.diff(labels[order]) > 0)))
+    order, starts = _groups(labels)
     return (np.minimum.reduceat(xz[order], starts, axis=0),
             np.maximum.reduceat(xz[order], starts, axis=0))
 
@@ -385,15 +397,14 @@ def _box_for_yaw(ry: float, oxz: np.ndarray, ouv: np.ndarray, oheight: np.ndarra
     top = float(oheight.max())
     if top > ROOF_SEEN * h:  # the roof is hit: the top lies at most ROOF_GAP above its returns
         h = float(np.clip(h, top, top + ROOF_GAP))
-    start_y = -(plane[0] * centroid[0] + plane[2] * centroid[1] + plane[3]) / plane[1]
-    start = np.array([centroid[0], start_y, centroid[1]])
+    start = _on_road(centroid, plane)
     T, dims, pinned, slide = _translation(oxz, ouv, np.array([h, w, l]), ry, box, sensor, start,
                                           calib, image_size, plane, cam)
     if not small and slide.any():  # length not measured: let the 2D box's width choose it
         T, dims[2] = _length_from_sides(T, dims, ry, slide, box, calib, image_size, plane, cam)
     if not small and oheight.min() > LOW_RETURNS * dims[0] and box.bbox[3] < image_size[1] - 2.0:
         T = _image_depth_check(T, dims, ry, box, sensor, calib, image_size, plane, cam)
-    return T, dims, sum(pinned)
+    return T, dims, pinned
 
 
 def _image_depth_check(T: np.ndarray, dims: np.ndarray, ry: float, box: Box2D, sensor: np.ndarray,
@@ -413,21 +424,20 @@ def _image_depth_check(T: np.ndarray, dims: np.ndarray, ry: float, box: Box2D, s
     d_img = np.linalg.norm(T_img[[0, 2]] - sensor[[0, 2]])
     if d_fit - d_img <= IMAGE_DEPTH_K * _image_depth_sigma(d_img):
         return T
-    xz = sensor[[0, 2]] + ray * (d_img / d_fit)
-    return np.array([xz[0], -(plane[0] * xz[0] + plane[2] * xz[1] + plane[3]) / plane[1], xz[1]])
+    return _on_road(sensor[[0, 2]] + ray * (d_img / d_fit), plane)
 
 
-def _side_misfit(T: np.ndarray, dims: np.ndarray, ry: float, box: Box2D, calib: Calibration,
-                 image_size, cam: int) -> float:
-    """Sum of squared pixel distances between the box's projected left/right extremes and the 2D
-    box's sides not cut by the image border."""
-    u = _columns(box_corners(np.array([[*T, *dims, ry]]))[0], calib.P(cam))
-    err = 0.0
+def _side_misfit(boxes7: np.ndarray, box: Box2D, calib: Calibration, image_size,
+                 cam: int) -> np.ndarray:
+    """Per 3D box (N, 7), the sum of squared pixel distances between its projected left/right
+    extremes and the 2D box's sides not cut by the image border."""
+    u = _columns(box_corners(boxes7), calib.P(cam))  # (N, 8)
+    err = np.zeros(len(u))
     if box.bbox[0] > 1.0:
-        err += (u.min() - box.bbox[0]) ** 2
+        err += (u.min(axis=1) - box.bbox[0]) ** 2
     if box.bbox[2] < image_size[0] - 2.0:
-        err += (u.max() - box.bbox[2]) ** 2
-    return float(err)
+        err += (u.max(axis=1) - box.bbox[2]) ** 2
+    return err
 
 
 def _explain_score(u_span, count, gap, width: float, sigma: float):
@@ -441,8 +451,7 @@ def _seed_clusters(labels: np.ndarray, u: np.ndarray, rng: np.ndarray, width: fl
                    sigma: float) -> np.ndarray:
     """The MAX_SEEDS clusters (of MIN_SEED returns or more) that best explain the box, scored all
     at once."""
-    order = np.argsort(labels, kind="stable")
-    starts = np.flatnonzero(np.concatenate(([True], np.diff(labels[order]) > 0)))
+    order, starts = _groups(labels)
     counts = np.diff(np.append(starts, len(labels)))
     ptp = np.maximum.reduceat(u[order], starts) - np.minimum.reduceat(u[order], starts)
     gap = np.minimum.reduceat(rng[order], starts) - road_d
@@ -522,7 +531,8 @@ def lift_fit(boxes: list[Box2D], priors: list[Prior], pts: FramePoints, calib: C
             T_h, dims_h, pinned_h = _box_for_yaw(ry_h, oxz, pts.uv[obj], pts.height[obj], prior, small,
                                                  box, pts.sensor, centroid, calib, image_size, plane,
                                                  cam)
-            cost = prior_cost + _side_misfit(T_h, dims_h, ry_h, box, calib, image_size, cam) / SIGMA_SIDE_PX ** 2
+            misfit = _side_misfit(np.array([[*T_h, *dims_h, ry_h]]), box, calib, image_size, cam)[0]
+            cost = prior_cost + misfit / SIGMA_SIDE_PX ** 2
             if cost < best_cost:
                 best_fit, best_cost = (ry_h, T_h, dims_h, pinned_h), cost
         ry, T, dims, pinned = best_fit

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kitti.boxes import box_corners, wrap_angle
+from kitti.boxes import UNIT_CORNERS, box_corners, wrap_angle
 from kitti.calib import Calibration
 
 # Side is "cut by the border" when it lies within this many pixels of the image edge: its column is
@@ -60,8 +60,7 @@ class MonoSolution:
 def ground_point(u: float, v: float, calib: Calibration, plane: np.ndarray, cam: int = 2) -> np.ndarray:
     """Where the ray through pixel (u, v) meets the road plane (rect frame); the closed-form inverse
     of 004's camera model for a known height."""
-    o = calib.image_to_rect(np.array([[u, v]]), np.array([0.0]), cam)[0]
-    p1 = calib.image_to_rect(np.array([[u, v]]), np.array([1.0]), cam)[0]
+    o, p1 = calib.image_to_rect(np.array([[u, v], [u, v]]), np.array([0.0, 1.0]), cam)
     d = p1 - o
     denom = d @ plane[:3]
     if abs(denom) < 1e-12:
@@ -99,9 +98,8 @@ def standing_corners(h: float, w: float, l: float, rotation_y: float,
     head = np.array([c, (up[2] * -s + up[0] * c) / -up[1], -s])  # in the surface: up . head = 0
     head /= np.linalg.norm(head)
     side = np.cross(up, head)
-    u = np.array([[0.5, 0, 0.5], [0.5, 0, -0.5], [-0.5, 0, -0.5], [-0.5, 0, 0.5],
-                  [0.5, 1, 0.5], [0.5, 1, -0.5], [-0.5, 1, -0.5], [-0.5, 1, 0.5]])
-    return np.outer(u[:, 0] * l, head) + np.outer(u[:, 1] * h, up) + np.outer(u[:, 2] * w, side)
+    u = UNIT_CORNERS  # its y runs down (0 to -1): the height goes along -y, here along `up`
+    return np.outer(u[:, 0] * l, head) - np.outer(u[:, 1] * h, up) + np.outer(u[:, 2] * w, side)
 
 
 def _lowest_foot(feet: np.ndarray, bbox: np.ndarray, calib: Calibration, plane: np.ndarray,

@@ -143,6 +143,20 @@ def _subsample(elev: tuple[float, ...], beams: int, name: str) -> tuple[float, .
     return elev[:: n // beams]
 
 
+# The real sensors' tables and datasheet figures (SENSORS.md).
+_REAL = {
+    "hdl64e": LidarSpec("hdl64e", HDL64E_ELEVATIONS, azimuth_step_deg=0.18, max_range=120.0,
+                        noise_sigma=0.015, bias_sigma=0.01, dark_range=50.0, bright_range=120.0),
+    "hdl32e": LidarSpec("hdl32e", HDL32E_ELEVATIONS, azimuth_step_deg=0.16, max_range=100.0,
+                        noise_sigma=0.015, bias_sigma=0.01, dark_range=40.0, bright_range=100.0),
+    "vlp32c": LidarSpec("vlp32c", VLP32C_ELEVATIONS, azimuth_step_deg=0.2, max_range=200.0,
+                        noise_sigma=0.02, bias_sigma=0.015, dark_range=80.0, bright_range=200.0),
+    "vlp16": LidarSpec("vlp16", VLP16_ELEVATIONS, azimuth_step_deg=0.2, max_range=100.0,
+                       noise_sigma=0.02, bias_sigma=0.015, dark_range=40.0, bright_range=100.0),
+}
+PRESETS = (*_REAL, "uniform")
+
+
 def preset(name: str, beams: int | None = None, max_range: float | None = None,
            fov_deg: tuple[float, float] = (2.0, -24.9)) -> LidarSpec:
     """A named sensor.
@@ -154,18 +168,8 @@ def preset(name: str, beams: int | None = None, max_range: float | None = None,
     rate, range and error model.
     """
     key = name.lower().replace("-", "").replace("_", "")
-    if key == "hdl64e":
-        spec = LidarSpec("hdl64e", HDL64E_ELEVATIONS, azimuth_step_deg=0.18, max_range=120.0,
-                         noise_sigma=0.015, bias_sigma=0.01, dark_range=50.0, bright_range=120.0)
-    elif key == "hdl32e":
-        spec = LidarSpec("hdl32e", HDL32E_ELEVATIONS, azimuth_step_deg=0.16, max_range=100.0,
-                         noise_sigma=0.015, bias_sigma=0.01, dark_range=40.0, bright_range=100.0)
-    elif key == "vlp32c":
-        spec = LidarSpec("vlp32c", VLP32C_ELEVATIONS, azimuth_step_deg=0.2, max_range=200.0,
-                         noise_sigma=0.02, bias_sigma=0.015, dark_range=80.0, bright_range=200.0)
-    elif key == "vlp16":
-        spec = LidarSpec("vlp16", VLP16_ELEVATIONS, azimuth_step_deg=0.2, max_range=100.0,
-                         noise_sigma=0.02, bias_sigma=0.015, dark_range=40.0, bright_range=100.0)
+    if key in _REAL:
+        spec = _REAL[key]
     elif key == "uniform":
         n = 64 if beams is None else int(beams)
         top, bottom = float(fov_deg[0]), float(fov_deg[1])
@@ -176,8 +180,8 @@ def preset(name: str, beams: int | None = None, max_range: float | None = None,
         spec = LidarSpec(f"uniform{n}", elev, azimuth_step_deg=0.18, max_range=120.0)
         beams = None
     else:
-        raise ValueError(f"unknown LiDAR preset {name!r}; choose hdl64e, hdl32e, vlp32c, vlp16 "
-                         "or uniform")
+        raise ValueError(f"unknown LiDAR preset {name!r}; choose {', '.join(PRESETS[:-1])} "
+                         f"or {PRESETS[-1]}")
     if beams is not None and beams != spec.beams:
         elev = _subsample(spec.elevations_deg, int(beams), spec.name)
         spec = replace(spec, name=f"{spec.name}-{beams}", elevations_deg=elev,
@@ -186,5 +190,3 @@ def preset(name: str, beams: int | None = None, max_range: float | None = None,
         spec = replace(spec, max_range=float(max_range))
     return spec
 
-
-PRESETS = ("hdl64e", "hdl32e", "vlp32c", "vlp16", "uniform")
