@@ -6,6 +6,7 @@ the normal pointing up (b < 0), so `height_above(X) = n·X + d` for a unit norma
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 from .points import rowdot
@@ -37,9 +38,8 @@ def fit_ground_plane(points_rect: np.ndarray, seed: int = 0,
     With too few low returns (a sparse or empty scan) the flat plane `fallback_height` below the
     camera is returned: the testbed's and KITTI's rig."""
     flat = np.array([0.0, -1.0, 0.0, fallback_height])
-    pts = points_rect[points_rect[:, 1] > CANDIDATE_BELOW]
-    if len(pts) > MAX_POINTS:  # an even stride keeps the spatial spread at a fraction of the cost
-        pts = pts[:: int(np.ceil(len(pts) / MAX_POINTS))]
+    pts = _low_returns(np.ascontiguousarray(points_rect, dtype=np.float64), CANDIDATE_BELOW,
+                       MAX_POINTS)
     if len(pts) < 30:
         return flat
     rng = np.random.default_rng(seed)
@@ -51,8 +51,7 @@ def fit_ground_plane(points_rect: np.ndarray, seed: int = 0,
         return flat
     n = n[ok] / norm[ok, None]
     d = -(n * a[ok]).sum(axis=1)
-    dist = pts[:, :1] * n[:, 0] + pts[:, 1:2] * n[:, 1] + pts[:, 2:3] * n[:, 2] + d  # (N, K)
-    counts = (np.abs(dist) < INLIER_M).sum(axis=0)
+    counts = _inlier_counts(pts, n, d, INLIER_M)
     best = normalise_plane(np.append(n[np.argmax(counts)], d[np.argmax(counts)]))
     # refine by least squares, re-selecting the inliers: a sample from the dense near returns is
     # slightly off in pitch, and only the refit brings the far road back inside the threshold
@@ -67,3 +66,36 @@ def fit_ground_plane(points_rect: np.ndarray, seed: int = 0,
         n = vecs[:, 0]  # smallest scatter: the normal
         best = normalise_plane(np.append(n, -np.dot(n, centre)))
     return best
+
+
+@numba.njit(cache=True, nogil=True)
+def _low_returns(p: np.ndarray, below: float, max_points: int) -> np.ndarray:
+    """The returns lower than `below` under the camera (rect y > below); more than max_points of
+    them are thinned by an even stride, which keeps their spatial spread at a fraction of the
+    cost."""
+    low = 0
+    for i in range(len(p)):
+        low += p[i, 1] > below
+    step = 1 if low <= max_points else -(-low // max_points)
+    out = np.empty(((low + step - 1) // step, 3))
+    k = j = 0
+    for i in range(len(p)):
+        if p[i, 1] > below:
+            if j % step == 0:
+                out[k] = p[i]
+                k += 1
+            j += 1
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _inlier_counts(p: np.ndarray, n: np.ndarray, d: np.ndarray, tol: float) -> np.ndarray:
+    """Per candidate plane (unit normal n[k], offset d[k]), the returns within tol of it: one pass
+    instead of numpy's (N, K) distance matrix."""
+    counts = np.zeros(len(d), dtype=np.int64)
+    for i in range(len(p)):
+        x, y, z = p[i, 0], p[i, 1], p[i, 2]
+        for k in range(len(d)):
+            if abs(x * n[k, 0] + y * n[k, 1] + z * n[k, 2] + d[k]) < tol:
+                counts[k] += 1
+    return counts

@@ -102,14 +102,99 @@ def standing_corners(h: float, w: float, l: float, rotation_y: float,
     return np.outer(u[:, 0] * l, head) - np.outer(u[:, 1] * h, up) + np.outer(u[:, 2] * w, side)
 
 
-def _lowest_foot(feet: np.ndarray, bbox: np.ndarray, calib: Calibration, plane: np.ndarray,
-                 cam: int) -> np.ndarray:
-    """Index (as a 1-array) of the ground contact that projects lowest: the feet placed around the
-    road point under the 2D box's bottom centre (their order does not change over the few metres
-    that point may be off)."""
-    g = ground_point(0.5 * (bbox[0] + bbox[2]), bbox[3], calib, plane, cam)
-    v = _project(g + feet[_BOTTOM], calib.P(cam))[0][:, 1]
-    return _BOTTOM[[int(np.argmax(v))]]
+@dataclass
+class _Outline:
+    """What a 2D box asks of any 3D box, whatever its size and yaw: the constrained sides (image
+    rows, linear in the translation) with their pseudo-inverse, and the road point under the
+    bottom edge. Built once per 2D box: `solve_from_alpha` re-solves it for several yaws."""
+
+    P: np.ndarray
+    image_size: tuple[int, int]
+    bbox: np.ndarray           # [x1, y1, x2, y2] as floats
+    up: np.ndarray | None      # the road's normal (None: no road plane)
+    rows: list[np.ndarray]     # per constrained side, its (4,) row P[axis] - s P[2] (scaled)
+    on_feet: list[bool]        # the side is the bottom edge: touched by a ground contact
+    A_pinv: np.ndarray         # (3, k) pseudo-inverse of the sides' rows and the road's (last)
+    plane_rhs: np.ndarray | None  # (8,) the road row's right-hand side
+    combos: np.ndarray         # (K, k) every corner assignment (bottom column: set per yaw)
+    bottom_col: int | None     # column of combos that is the lowest ground contact
+    ground: np.ndarray | None  # road point under the bottom edge's middle
+
+
+def _outline(bbox: np.ndarray, calib: Calibration, image_size: tuple[int, int],
+             plane: np.ndarray | None, cam: int, cut_ok: bool) -> _Outline:
+    P = calib.P(cam)
+    W, H = image_size
+    x1, y1, x2, y2 = (float(v) for v in bbox)
+    # (axis, pixel, admissible corners, constrains?). With the road plane and a visible bottom edge,
+    # the ground contact fixes the depth; the top edge would only add the predicted height's error
+    # (7 % of the depth for a 0.1 m error on a car), so it is left out.
+    bottom_seen = y2 < H - 1 - BORDER_PX
+    lowest = _BOTTOM if plane is None else _BOTTOM[:1]  # with the plane: one contact, set per yaw
+    sides = [(0, x1, _ALL, x1 > BORDER_PX), (0, x2, _ALL, x2 < W - 1 - BORDER_PX),
+             (1, y1, _TOP, y1 > BORDER_PX and (plane is None or not bottom_seen)),
+             (1, y2, lowest, bottom_seen)]
+    if sum(side[3] for side in sides) + (plane is not None) < 3 and cut_ok:
+        # cut on too many sides: take the border as the outline there (the box is then too small,
+        # so the depth comes out too far; the only answer the image still gives)
+        sides = [(axis, s, corner_set, True) for axis, s, corner_set, _ in sides]
+    sides = [side for side in sides if side[3]]
+    rows, on_feet, choices = [], [], []
+    for axis, s, corner_set, _ in sides:
+        r = P[axis] - s * P[2]  # (4,)
+        bottom = axis == 1 and corner_set.max() < 4
+        if bottom and plane is not None:
+            r = r * CONTACT_WEIGHT
+        rows.append(r)
+        on_feet.append(bottom)
+        choices.append(corner_set)
+    A = [r[:3] for r in rows]
+    plane_rhs = ground = bottom_col = None
+    if plane is not None:
+        n = np.asarray(plane, dtype=float)
+        scale = PLANE_WEIGHT * P[0, 0]  # a metre of plane error ~ f pixels at 1 m
+        A.append(n[:3] * scale)
+        plane_rhs = np.full(8, -n[3] * scale)
+        choices.append(np.zeros(1, dtype=int))
+        ground = ground_point(0.5 * (x1 + x2), y2, calib, plane, cam)
+        bottom_col = next((i for i, b in enumerate(on_feet) if b), None)
+    if len(A) < 3:
+        raise ValueError(f"box {np.asarray(bbox).tolist()} leaves {len(A)} constraints; "
+                         f"3 are needed")
+    return _Outline(P, image_size, np.array([x1, y1, x2, y2]), None if plane is None else _up(plane),
+                    rows, on_feet, np.linalg.pinv(np.array(A)), plane_rhs,
+                    _grid(choices), bottom_col, ground)
+
+
+def _place(o: _Outline, dims: np.ndarray, rotation_y: float,
+           contact: tuple[float, float]) -> MonoSolution:
+    """The translation of the box (dims, yaw) whose projection best fits the outline."""
+    h, w, l = (float(v) for v in dims)
+    P = o.P
+    W, H = o.image_size
+    offs = standing_corners(h, w, l, rotation_y, o.up)  # (8, 3) from the bottom centre
+    feet = standing_corners(h, w * contact[1], l * contact[0], rotation_y, o.up)
+    rhs_sets = [-((feet if bottom else offs) @ r[:3] + r[3]) for r, bottom in zip(o.rows, o.on_feet)]
+    if o.plane_rhs is not None:
+        rhs_sets.append(o.plane_rhs)
+    combos = o.combos
+    if o.bottom_col is not None:
+        # which ground contact projects lowest depends on the yaw, hardly on the position: the feet
+        # placed around the road point under the bottom edge decide it
+        v = _project(o.ground + feet[_BOTTOM], P)[0][:, 1]
+        combos = combos.copy()
+        combos[:, o.bottom_col] = _BOTTOM[int(np.argmax(v))]
+    B = np.stack([rhs_sets[i][combos[:, i]] for i in range(len(rhs_sets))], axis=0)  # (k, K)
+    T = np.einsum("ij,jk->ki", o.A_pinv, B)  # (K, 3); einsum: no BLAS threads
+    uv, z = _project(T[:, None, :] + offs[None], P)  # (K, 8, 2) box corners
+    lo, hi = uv.min(axis=1), uv.max(axis=1)
+    foot_v = _project(T[:, None, :] + feet[None, _BOTTOM], P)[0][..., 1].max(axis=1)  # contact row
+    proj = np.stack([np.clip(lo[:, 0], 0, W - 1), np.clip(lo[:, 1], 0, H - 1),
+                     np.clip(hi[:, 0], 0, W - 1), np.clip(foot_v, 0, H - 1)], axis=1)
+    err = np.abs(proj - o.bbox).mean(axis=1)
+    err = np.where((z > 0.1).all(axis=1), err, np.inf)
+    best = int(np.argmin(err))
+    return MonoSolution(T[best], float(rotation_y), float(err[best]))
 
 
 def solve_translation(dims: np.ndarray, rotation_y: float, bbox: np.ndarray, calib: Calibration,
@@ -124,56 +209,7 @@ def solve_translation(dims: np.ndarray, rotation_y: float, bbox: np.ndarray, cal
     With `cut_ok`, a box cut on so many sides that fewer than 3 constraints remain uses its border
     sides too; without it, that is an error.
     """
-    h, w, l = (float(v) for v in dims)
-    P = calib.P(cam)
-    W, H = image_size
-    x1, y1, x2, y2 = (float(v) for v in bbox)
-    up = None if plane is None else _up(plane)
-    offs = standing_corners(h, w, l, rotation_y, up)  # (8, 3) from the bottom centre
-    feet = standing_corners(h, w * contact[1], l * contact[0], rotation_y, up)
-    # (axis, pixel, admissible corners, constrains?). With the road plane and a visible bottom edge,
-    # the ground contact fixes the depth; the top edge would only add the predicted height's error
-    # (7 % of the depth for a 0.1 m error on a car), so it is left out.
-    bottom_seen = y2 < H - 1 - BORDER_PX
-    lowest = _BOTTOM if plane is None else _lowest_foot(feet, bbox, calib, plane, cam)
-    sides = [(0, x1, _ALL, x1 > BORDER_PX), (0, x2, _ALL, x2 < W - 1 - BORDER_PX),
-             (1, y1, _TOP, y1 > BORDER_PX and (plane is None or not bottom_seen)),
-             (1, y2, lowest, bottom_seen)]
-    rows, rhs_sets, choices = [], [], []
-    if sum(side[3] for side in sides) + (plane is not None) < 3 and cut_ok:
-        # cut on too many sides: take the border as the outline there (the box is then too small,
-        # so the depth comes out too far; the only answer the image still gives)
-        sides = [(axis, s, corner_set, True) for axis, s, corner_set, _ in sides]
-    sides = [side for side in sides if side[3]]
-    for axis, s, corner_set, _ in sides:
-        r = P[axis] - s * P[2]  # (4,)
-        bottom = axis == 1 and corner_set.max() < 4
-        if bottom and plane is not None:
-            r = r * CONTACT_WEIGHT
-        rows.append(r[:3])
-        rhs_sets.append(-((feet if bottom else offs) @ r[:3] + r[3]))  # (8,) one rhs per corner
-        choices.append(corner_set)
-    if plane is not None:
-        n = np.asarray(plane, dtype=float)
-        scale = PLANE_WEIGHT * P[0, 0]  # a metre of plane error ~ f pixels at 1 m
-        rows.append(n[:3] * scale)
-        rhs_sets.append(np.full(8, -n[3] * scale))
-        choices.append(np.zeros(1, dtype=int))
-    if len(rows) < 3:
-        raise ValueError(f"box {bbox.tolist()} leaves {len(rows)} constraints; 3 are needed")
-    A = np.array(rows)  # (k, 3)
-    combos = _grid(choices)  # (K, k)
-    B = np.stack([rhs_sets[i][combos[:, i]] for i in range(len(rows))], axis=0)  # (k, K)
-    T = np.einsum("ij,jk->ki", np.linalg.pinv(A), B)  # (K, 3); einsum: no BLAS threads
-    uv, z = _project(T[:, None, :] + offs[None], P)  # (K, 8, 2) box corners
-    lo, hi = uv.min(axis=1), uv.max(axis=1)
-    foot_v = _project(T[:, None, :] + feet[None, _BOTTOM], P)[0][..., 1].max(axis=1)  # contact row
-    proj = np.stack([np.clip(lo[:, 0], 0, W - 1), np.clip(lo[:, 1], 0, H - 1),
-                     np.clip(hi[:, 0], 0, W - 1), np.clip(foot_v, 0, H - 1)], axis=1)
-    err = np.abs(proj - np.array([x1, y1, x2, y2])).mean(axis=1)
-    err = np.where((z > 0.1).all(axis=1), err, np.inf)
-    best = int(np.argmin(err))
-    return MonoSolution(T[best], float(rotation_y), float(err[best]))
+    return _place(_outline(bbox, calib, image_size, plane, cam, cut_ok), dims, rotation_y, contact)
 
 
 def solve_from_alpha(dims: np.ndarray, alpha: float, bbox: np.ndarray, calib: Calibration,
@@ -187,11 +223,12 @@ def solve_from_alpha(dims: np.ndarray, alpha: float, bbox: np.ndarray, calib: Ca
     v = 0.5 * (bbox[1] + bbox[3])
     ray = calib.image_to_rect(np.array([[u, v]]), np.array([10.0]), cam)[0]
     ry = float(wrap_angle(alpha + np.arctan2(ray[0], ray[2])))
-    sol = solve_translation(dims, ry, bbox, calib, image_size, plane, cam, cut_ok, contact)
+    outline = _outline(bbox, calib, image_size, plane, cam, cut_ok)
+    sol = _place(outline, dims, ry, contact)
     for _ in range(iters):
         ry_new = float(wrap_angle(alpha + np.arctan2(sol.location[0], sol.location[2])))
         if abs(wrap_angle(ry_new - ry)) < tol:
             break
         ry = ry_new
-        sol = solve_translation(dims, ry, bbox, calib, image_size, plane, cam, cut_ok, contact)
+        sol = _place(outline, dims, ry, contact)
     return sol
