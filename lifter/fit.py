@@ -27,10 +27,21 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from kitti.boxes import box_corners, wrap_angle
+from kitti.boxes import wrap_angle
 from kitti.calib import Calibration
 
 from .mono import contact_of, solve_from_alpha, solve_translation
+from .placement import (
+    FOCAL_PX,
+    MAX_GROW_L,
+    MAX_GROW_W,
+    SIGMA_SIDE_PX,
+    length_from_sides,
+    percentile,
+    road_y,
+    side_misfit,
+    translation,
+)
 from .points import FramePoints, rowdot
 from .types import Box2D, Lifted, Prior
 
@@ -44,43 +55,20 @@ MAX_SEEDS = 3          # best-scoring clusters tried as seeds
 MIN_LSHAPE = 8         # fewer returns: keep the network's yaw
 LSHAPE_D0 = 0.05       # m, closeness floor of the L-shape criterion
 MAX_LSHAPE_POINTS = 300  # returns used for the yaw search (evenly strided)
-SIGMA_FACE = 0.05      # m, weight of a face row
-SIGMA_IMAGE = 0.15     # m at the object, weight of a 2D-side row (mesh silhouette vs box)
 CLAIM_MARGIN = 0.3     # m around a fitted box whose returns it claims
 CLAIM_MIN_SCORE = 0.3  # 2D score a box needs to claim returns
-SIGMA_CENTROID = 3.0   # m, weak pull to the returns' centroid
-FACE_BAND = 0.25       # m, returns this close to an extreme are "at" it
-FACE_SPREAD = 0.3      # of the face's width: returns spreading this far across it show the face
-FACE_MAX_SLIDE = 0.3   # m, how far an end may hide within the 2D side tolerance
-FOCAL_PX = 720.0       # px, a KITTI-like focal length: only for pixel-to-metre sensitivities
-WEAK_FACE = 0.1        # weight of an unconfirmed near face, relative to a confirmed one
-FACE_TOL_PX = 3.0      # px, an extreme this close to a 2D side is the outline's end
-FACE_TOL_FRAC = 0.06   # ... or this share of the box width
-MAX_GROW_L = 0.4       # m, most the returns may lengthen the prior box
-MAX_GROW_W = 0.25      # m, most they may widen it
-SHRINK = 0.15          # most the returns may shorten or narrow it (share of the prior)
 ROOF_SEEN = 0.75       # highest return above this share of the prior height: the roof is hit
 ROOF_GAP = 0.2         # m, the top lies at most this far above the highest roof return (64 beams:
                        # 90 % within 0.14 m on the testbed's cars; sparse scans a little more)
 MERGE_SLACK = 0.3      # m, how much larger than the size prior's diagonal a merged set may be
-LENGTH_GRID = 1.0 + 0.01 * np.arange(-25, 26)  # x prior length tried against the 2D box
-SIGMA_LENGTH = 0.35    # m, the size network's length error on cars (MAE 0.35 m on held-out worlds)
 LOW_RETURNS = 0.4      # share of the height: no return below it, and the face may be unseen
 IMAGE_DEPTH_K = 0.15   # returns this many image-depth sigmas behind the road contact are
                        # bonnet, boot or windows: the image's depth is taken
 SIGMA_YAW_PRIOR = np.deg2rad(20.0)  # the network's orientation, against the 2D box's evidence
-SIGMA_SIDE_PX = 2.0    # px, a 2D box side vs the projected 3D box (the body's outline lies 1-3 px
-                       # inside the box's corners on the testbed's cars)
 SMALL_CLASSES = ("Pedestrian", "Cyclist", "Person_sitting")
 
 _COARSE = np.deg2rad(np.arange(0.0, 90.0, 3.0))
 _FINE = np.deg2rad(np.arange(-1.5, 1.5001, 0.1))
-
-
-def _pct(v: np.ndarray, q: float) -> float:
-    """The q-th percentile (nearest rank): np.percentile's interpolation costs ten times more."""
-    k = round(q / 100.0 * (len(v) - 1))
-    return float(np.partition(v, k)[k])
 
 
 def _bev_clusters(xz: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -183,164 +171,6 @@ def _fallback(box, prior, calib, image_size, plane, cam) -> Lifted:
     return Lifted(sol.location, sol.rotation_y, np.asarray(prior.dims, dtype=float), quality=0.2)
 
 
-def _faces(pxz: np.ndarray, puv: np.ndarray, e: np.ndarray, e_other: np.ndarray, size: float,
-           other: float, grow: float, sensor_xz: np.ndarray, box: Box2D,
-           width: int) -> tuple[float, float, float, float]:
-    """The centre coordinate along axis e implied by the faces the returns show.
-
-    The extreme of the returns facing the sensor is a face when the returns beside it spread
-    across it (the face is seen), or when it reaches a 2D box side (the outline ends there: the
-    end of a face seen edge-on). The far extreme is trusted only in the second case (far roof or
-    bonnet returns are no face). An extreme that touches a box side at the image border is cut
-    there, and one that ends inside the box without showing its face is cut by an occluder:
-    neither is used. When both ends are shown, their distance is the size (within SHRINK below
-    and `grow` above the prior). Returns the centre coordinate, a weight factor, the size, and
-    which way the centre moves along e when the size grows with the anchoring face kept (+1, -1;
-    0 when the returns measure the size).
-    """
-    p, q = rowdot(pxz, e), rowdot(pxz, e_other)
-    lo, hi = _pct(p, 2.0), _pct(p, 98.0)
-    near_lo = sensor_xz @ e < 0.5 * (lo + hi)
-    tol = max(FACE_TOL_PX, FACE_TOL_FRAC * (box.bbox[2] - box.bbox[0]))
-    x1, x2 = box.bbox[0], box.bbox[2]
-    border = [u for u, cut in ((x1, x1 <= 1.0), (x2, x2 >= width - 2.0)) if cut]
-    sides = [u for u, cut in ((x1, x1 <= 1.0), (x2, x2 >= width - 2.0)) if not cut]
-    ok = {}
-    for face, near in ((lo, near_lo), (hi, not near_lo)):
-        dist = np.abs(p - face)
-        at = dist <= max(FACE_BAND, dist.min())  # the percentile may fall between sparse returns
-        u = puv[at, 0]
-        if any(np.abs(u - b).min() < tol for b in border):
-            ok[near] = False
-            continue
-        # reaching a 2D side only proves an end where moving along e moves the image point enough
-        a = pxz[at].sum(axis=0) / at.sum()
-        px_per_m = abs(FOCAL_PX * ((a[0] + e[0]) / (a[1] + e[1]) - a[0] / a[1]))
-        ends = px_per_m * FACE_MAX_SLIDE >= tol and any(np.abs(u - s).min() < tol for s in sides)
-        ok[near] = ends or (near and np.ptp(q[at]) >= FACE_SPREAD * other)
-    near_face, near_sign = (lo, 1.0) if near_lo else (hi, -1.0)
-    far_face, far_sign = (hi, -1.0) if near_lo else (lo, 1.0)
-    if ok[True] and ok[False]:  # both ends shown: the returns measure the size too
-        measured = float(np.ptp(p))
-        if (1 - SHRINK) * size <= measured <= size + grow:
-            return 0.5 * (p.min() + p.max()), 1.0, measured, 0.0
-        return near_face + near_sign * size / 2, 1.0, size, near_sign
-    if ok[True]:
-        return near_face + near_sign * size / 2, 1.0, size, near_sign
-    if ok[False]:
-        return far_face + far_sign * size / 2, 1.0, size, far_sign
-    # no face confirmed: returns lie on the surfaces facing the sensor, so the likeliest centre is
-    # still half a size beyond the near extreme; a weak row
-    return near_face + near_sign * size / 2, WEAK_FACE, size, near_sign
-
-
-def _on_road(xz: np.ndarray, plane: np.ndarray) -> np.ndarray:
-    """(..., 3) points of the road plane at bird's-eye positions xz (..., 2)."""
-    x, z = xz[..., 0], xz[..., 1]
-    return np.stack([x, -(plane[0] * x + plane[2] * z + plane[3]) / plane[1], z], axis=-1)
-
-
-def _columns(pts: np.ndarray, P: np.ndarray) -> np.ndarray:
-    """Image column of rect-frame points (..., 3)."""
-    x, y, z = pts[..., 0], pts[..., 1], pts[..., 2]
-    return ((P[0, 0] * x + P[0, 1] * y + P[0, 2] * z + P[0, 3])
-            / (P[2, 0] * x + P[2, 1] * y + P[2, 2] * z + P[2, 3]))
-
-
-def _wls2(A: np.ndarray, b: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """Weighted least squares in two unknowns by the 2x2 normal equations (rows scaled by w):
-    LAPACK's lstsq costs more in set-up than this whole solve."""
-    Aw = A * w[:, None]
-    bw = b * w
-    a11, a12, a22 = Aw[:, 0] @ Aw[:, 0], Aw[:, 0] @ Aw[:, 1], Aw[:, 1] @ Aw[:, 1]
-    r1, r2 = Aw[:, 0] @ bw, Aw[:, 1] @ bw
-    det = a11 * a22 - a12 * a12
-    return np.array([a22 * r1 - a12 * r2, a11 * r2 - a12 * r1]) / det
-
-
-def _translation(pxz: np.ndarray, puv: np.ndarray, dims: np.ndarray, ry: float, box: Box2D,
-                 sensor: np.ndarray, start: np.ndarray, calib: Calibration, image_size,
-                 plane: np.ndarray, cam: int) -> tuple[np.ndarray, np.ndarray, int, np.ndarray]:
-    """Bottom-centre (x, y, z) by weighted least squares on faces, 2D sides and the road plane,
-    the size with l and w measured where the returns show both ends, how many of the two axes a
-    confirmed face pins down, and the (x, z) direction the centre moves per metre of length with
-    the anchoring face kept (zero when the returns measure the length)."""
-    h, w, l = dims
-    ea = np.array([np.cos(ry), -np.sin(ry)])  # heading in (x, z)
-    eb = np.array([np.sin(ry), np.cos(ry)])   # lateral
-    sxz = sensor[[0, 2]]
-    ray = start[[0, 2]] - sxz
-    ray = ray / max(np.linalg.norm(ray), 1e-9)
-    rows, rhs, wts = [], [], []
-    sizes, pinned, slides = [], 0, []
-    for e, eo, size, other, grow in ((ea, eb, l, w, MAX_GROW_L), (eb, ea, w, l, MAX_GROW_W)):
-        centre, weight, size, slide = _faces(pxz, puv, e, eo, size, other, grow, sxz, box,
-                                             image_size[0])
-        slides.append(0.5 * slide * e)
-        sizes.append(size)
-        pinned += weight == 1.0
-        rows.append(e)
-        rhs.append(centre)
-        wts.append(weight * (0.2 + 0.8 * abs(ray @ e)) / SIGMA_FACE)
-        rows.append(e)  # weak pull to the returns' centroid: only matters when nothing else binds
-        rhs.append(start[[0, 2]] @ e)
-        wts.append(1.0 / SIGMA_CENTROID)
-    l, w = sizes
-    P = calib.P(cam)
-    W = image_size[0]
-    n = plane[:3]
-
-    def lift_row(r3, r0):  # a row in (x, y, z) -> (x, z) with y on the plane
-        return np.array([r3[0] - r3[1] * n[0] / n[1], r3[2] - r3[1] * n[2] / n[1]]), \
-            -(r0 - r3[1] * plane[3] / n[1])
-    A0, b0, w0 = np.array(rows), np.array(rhs), np.array(wts)
-    xz = _wls2(A0, b0, w0)
-    offs = box_corners(np.array([[0, 0, 0, h, w, l, ry]]))[0]
-    for _ in range(2):
-        # the 2D sides fix the bearing, not the depth: each side's row keeps only its component
-        # across the camera ray (else a few pixels of silhouette-vs-box mismatch, which the LS
-        # would absorb cheaply along the ray, pull the box by a metre in depth)
-        T = _on_road(xz, plane)
-        r = xz / max(np.linalg.norm(xz), 1e-9)
-        u_corner = _columns(offs + T, P)
-        extra_rows, extra_rhs, extra_w = [], [], []
-        for u, pick, cut in ((box.bbox[0], np.argmin(u_corner), box.bbox[0] <= 1.0),
-                             (box.bbox[2], np.argmax(u_corner), box.bbox[2] >= W - 2.0)):
-            if cut:
-                continue
-            pr = P[0] - u * P[2]
-            a2, b2 = lift_row(pr[:3], pr[3] + pr[:3] @ offs[pick])
-            along = a2 @ r
-            extra_rows.append((a2 - along * r) / P[0, 0])
-            extra_rhs.append((b2 - along * (r @ xz)) / P[0, 0])
-            extra_w.append(1.0 / SIGMA_IMAGE)
-        A = np.vstack([A0] + [np.array(extra_rows)] * bool(extra_rows))
-        b = np.concatenate([b0, extra_rhs])
-        wv = np.concatenate([w0, extra_w])
-        xz = _wls2(A, b, wv)
-    return _on_road(xz, plane), np.array([h, w, l]), pinned, slides[0]
-
-
-def _length_from_sides(T: np.ndarray, dims: np.ndarray, ry: float, slide: np.ndarray,
-                       box: Box2D, calib: Calibration, image_size, plane: np.ndarray,
-                       cam: int) -> tuple[np.ndarray, float]:
-    """A length the returns do not measure, chosen with the 2D box: every length of LENGTH_GRID x the
-    prior, the box's anchoring face kept (the centre slides by `slide` per metre); the one that
-    best balances the outline's misfit to the 2D box's left and right sides (SIGMA_SIDE_PX each)
-    against its distance from the prior (SIGMA_LENGTH) wins. Seen from behind, the sides hardly
-    move with the length and the prior stands; seen from the side, they decide.
-    Returns the centre and the length."""
-    h, w, l = dims
-    lengths = l * LENGTH_GRID
-    centres = _on_road(T[[0, 2]] + np.outer(lengths - l, slide), plane)
-    k = len(lengths)
-    boxes = np.column_stack([centres, np.full(k, h), np.full(k, w), lengths, np.full(k, ry)])
-    cost = (((lengths - l) / SIGMA_LENGTH) ** 2
-            + _side_misfit(boxes, box, calib, image_size, cam) / SIGMA_SIDE_PX ** 2)
-    best = int(np.argmin(cost))
-    return centres[best], float(lengths[best])
-
-
 def _groups(labels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Order that sorts the items by cluster, and where each cluster starts in it: for
     `ufunc.reduceat` per cluster (the labels run 0..k-1, every one present)."""
@@ -379,7 +209,7 @@ def _merge(xz: np.ndarray, labels: np.ndarray, seed: int, diag: float,
     return take
 
 
-def _box_for_yaw(ry: float, oxz: np.ndarray, ouv: np.ndarray, oheight: np.ndarray, prior: Prior,
+def _box_for_yaw(ry: float, oxz: np.ndarray, ou: np.ndarray, oheight: np.ndarray, prior: Prior,
                  small: bool, box: Box2D, sensor: np.ndarray, centroid: np.ndarray,
                  calib: Calibration, image_size, plane: np.ndarray,
                  cam: int) -> tuple[np.ndarray, np.ndarray, int]:
@@ -387,21 +217,21 @@ def _box_for_yaw(ry: float, oxz: np.ndarray, ouv: np.ndarray, oheight: np.ndarra
     the prior size grown to hold them and brought to the roof, the faces, 2D sides and road
     fixing the centre, and an unmeasured length chosen with the 2D box."""
     h, w, l = (float(v) for v in prior.dims)
-    ea = np.array([np.cos(ry), -np.sin(ry)])
-    eb = np.array([np.sin(ry), np.cos(ry)])
-    pa, pb = rowdot(oxz, ea), rowdot(oxz, eb)
-    ext_a, ext_b = _pct(pa, 98.0) - _pct(pa, 2.0), _pct(pb, 98.0) - _pct(pb, 2.0)
+    pa = rowdot(oxz, np.array([np.cos(ry), -np.sin(ry)]))
+    pb = rowdot(oxz, np.array([np.sin(ry), np.cos(ry)]))
+    ext_a = percentile(pa, 98.0) - percentile(pa, 2.0)
+    ext_b = percentile(pb, 98.0) - percentile(pb, 2.0)
     if not small:  # grow to hold the returns, unless they clearly hold something else too
         l = ext_a if l < ext_a <= l + MAX_GROW_L else l
         w = ext_b if w < ext_b <= w + MAX_GROW_W else w
     top = float(oheight.max())
     if top > ROOF_SEEN * h:  # the roof is hit: the top lies at most ROOF_GAP above its returns
         h = float(np.clip(h, top, top + ROOF_GAP))
-    start = _on_road(centroid, plane)
-    T, dims, pinned, slide = _translation(oxz, ouv, np.array([h, w, l]), ry, box, sensor, start,
-                                          calib, image_size, plane, cam)
+    P, width = calib.P(cam), image_size[0]
+    T, dims, pinned, slide = translation(oxz, ou, h, w, l, ry, box.bbox, sensor[[0, 2]], centroid,
+                                         P, width, plane)
     if not small and slide.any():  # length not measured: let the 2D box's width choose it
-        T, dims[2] = _length_from_sides(T, dims, ry, slide, box, calib, image_size, plane, cam)
+        T, dims[2] = length_from_sides(T, *dims, ry, slide, box.bbox, P, width, plane)
     if not small and oheight.min() > LOW_RETURNS * dims[0] and box.bbox[3] < image_size[1] - 2.0:
         T = _image_depth_check(T, dims, ry, box, sensor, calib, image_size, plane, cam)
     return T, dims, pinned
@@ -424,20 +254,8 @@ def _image_depth_check(T: np.ndarray, dims: np.ndarray, ry: float, box: Box2D, s
     d_img = np.linalg.norm(T_img[[0, 2]] - sensor[[0, 2]])
     if d_fit - d_img <= IMAGE_DEPTH_K * _image_depth_sigma(d_img):
         return T
-    return _on_road(sensor[[0, 2]] + ray * (d_img / d_fit), plane)
-
-
-def _side_misfit(boxes7: np.ndarray, box: Box2D, calib: Calibration, image_size,
-                 cam: int) -> np.ndarray:
-    """Per 3D box (N, 7), the sum of squared pixel distances between its projected left/right
-    extremes and the 2D box's sides not cut by the image border."""
-    u = _columns(box_corners(boxes7), calib.P(cam))  # (N, 8)
-    err = np.zeros(len(u))
-    if box.bbox[0] > 1.0:
-        err += (u.min(axis=1) - box.bbox[0]) ** 2
-    if box.bbox[2] < image_size[0] - 2.0:
-        err += (u.max(axis=1) - box.bbox[2]) ** 2
-    return err
+    x, z = sensor[[0, 2]] + ray * (d_img / d_fit)
+    return np.array([x, road_y(x, z, plane), z])
 
 
 def _explain_score(u_span, count, gap, width: float, sigma: float):
@@ -510,6 +328,7 @@ def lift_fit(boxes: list[Box2D], priors: list[Prior], pts: FramePoints, calib: C
             continue
         obj = cand[best]
         oxz = xz[best]
+        ou = pts.uv[obj, 0]
         centroid = oxz.sum(axis=0) / len(oxz)
         ry_prior = float(wrap_angle(prior.alpha + np.arctan2(centroid[0], centroid[1])))
         small = box.type in SMALL_CLASSES
@@ -528,10 +347,10 @@ def lift_fit(boxes: list[Box2D], priors: list[Prior], pts: FramePoints, calib: C
             prior_cost = (off / SIGMA_YAW_PRIOR) ** 2
             if prior_cost >= best_cost:  # its misfit to the 2D box could only add to that
                 continue
-            T_h, dims_h, pinned_h = _box_for_yaw(ry_h, oxz, pts.uv[obj], pts.height[obj], prior, small,
-                                                 box, pts.sensor, centroid, calib, image_size, plane,
-                                                 cam)
-            misfit = _side_misfit(np.array([[*T_h, *dims_h, ry_h]]), box, calib, image_size, cam)[0]
+            T_h, dims_h, pinned_h = _box_for_yaw(ry_h, oxz, ou, pts.height[obj], prior, small, box,
+                                                 pts.sensor, centroid, calib, image_size, plane, cam)
+            misfit = side_misfit(np.array([[*T_h, *dims_h, ry_h]]), calib.P(cam), box.bbox,
+                                 image_size[0])[0]
             cost = prior_cost + misfit / SIGMA_SIDE_PX ** 2
             if cost < best_cost:
                 best_fit, best_cost = (ry_h, T_h, dims_h, pinned_h), cost
