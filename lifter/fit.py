@@ -12,7 +12,7 @@ under CLAIM_MIN_SCORE after the others):
    one nearest the network's; too few or collinear-in-one-point returns keep the network's yaw;
 4. size: the network's, measured where both ends show, grown to hold the returns (capped);
    the height brought within ROOF_GAP of the roof returns when the roof is hit; a length the
-   returns do not measure is chosen among LENGTH_STEPS x the network's by how well the fitted
+   returns do not measure is chosen among LENGTH_GRID x the network's by how well the fitted
    box's outline meets the 2D box's left and right sides;
 5. translation (x, z) by weighted least squares: the faces the returns confirm must touch the
    extreme returns, the box's outline must meet the 2D box's left and right sides (across the
@@ -20,6 +20,8 @@ under CLAIM_MIN_SCORE after the others):
    plane; two passes (the corner that touches each side may change);
 6. fewer than MIN_POINTS returns: the image-only solution constrained to the road plane;
 7. score = 2D score x a quality from the number of returns and the faces that pin the box.
+
+Step 2 is `clusters.object_returns`, steps 4-5 are `placement`'s kernels.
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ import numpy as np
 from kitti.boxes import wrap_angle
 from kitti.calib import Calibration
 
+from .clusters import MIN_POINTS, object_returns
 from .mono import contact_of, solve_from_alpha, solve_translation
 from .placement import (
     FOCAL_PX,
@@ -47,11 +50,6 @@ from .types import Box2D, Lifted, Prior
 
 ROAD_CUT = 0.15        # m above the fitted plane: lower returns are road
 MAX_HEIGHT = 4.0       # m above the plane: higher returns are no road user
-CLUSTER_R = 0.6        # m, bird's-eye linking distance
-CELL = 0.1             # m, bird's-eye cell the returns are pooled in before clustering
-MIN_POINTS = 3         # fewer returns: image-only fallback
-MIN_SEED = 2           # returns of a cluster that may seed an object
-MAX_SEEDS = 3          # best-scoring clusters tried as seeds
 MIN_LSHAPE = 8         # fewer returns: keep the network's yaw
 LSHAPE_D0 = 0.05       # m, closeness floor of the L-shape criterion
 MAX_LSHAPE_POINTS = 300  # returns used for the yaw search (evenly strided)
@@ -60,7 +58,6 @@ CLAIM_MIN_SCORE = 0.3  # 2D score a box needs to claim returns
 ROOF_SEEN = 0.75       # highest return above this share of the prior height: the roof is hit
 ROOF_GAP = 0.2         # m, the top lies at most this far above the highest roof return (64 beams:
                        # 90 % within 0.14 m on the testbed's cars; sparse scans a little more)
-MERGE_SLACK = 0.3      # m, how much larger than the size prior's diagonal a merged set may be
 LOW_RETURNS = 0.4      # share of the height: no return below it, and the face may be unseen
 IMAGE_DEPTH_K = 0.15   # returns this many image-depth sigmas behind the road contact are
                        # bonnet, boot or windows: the image's depth is taken
@@ -71,69 +68,39 @@ _COARSE = np.deg2rad(np.arange(0.0, 90.0, 3.0))
 _FINE = np.deg2rad(np.arange(-1.5, 1.5001, 0.1))
 
 
-def _bev_clusters(xz: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Bird's-eye cells (CELL m) of the returns, their cluster labels, and each return's cell:
-    clustering cells instead of returns bounds the cost on a dense near car."""
-    ij = np.floor(xz / CELL).astype(np.int64)
-    ij -= ij.min(axis=0)
-    key = ij[:, 0] * (int(ij[:, 1].max()) + 1) + ij[:, 1]  # one integer per cell: a 1-D unique
-    _, first, inverse = np.unique(key, return_index=True, return_inverse=True)
-    cells = (np.floor(xz[first] / CELL) + 0.5) * CELL
-    return cells, _link_components(cells, CLUSTER_R), inverse.reshape(-1)
-
-
 @numba.njit(cache=True, nogil=True)
-def _link_components(p: np.ndarray, r: float) -> np.ndarray:
-    """Connected components of the points under 'closer than r' (labels 0, 1, ... in order of
-    each component's first point): a flood fill over all pairs, cheaper than a k-d tree and a
-    sparse graph for the few hundred cells of one frustum."""
-    n = len(p)
-    label = np.full(n, -1, dtype=np.int64)
-    stack = np.empty(n, dtype=np.int64)
-    r2 = r * r
-    k = 0
-    for s in range(n):
-        if label[s] >= 0:
-            continue
-        label[s] = k
-        top = 0
-        stack[0] = s
-        while top >= 0:
-            i = stack[top]
-            top -= 1
-            for j in range(n):
-                if label[j] < 0:
-                    dx = p[i, 0] - p[j, 0]
-                    dz = p[i, 1] - p[j, 1]
-                    if dx * dx + dz * dz <= r2:
-                        label[j] = k
-                        top += 1
-                        stack[top] = j
-        k += 1
-    return label
-
-
 def _closeness(xz: np.ndarray, thetas: np.ndarray) -> np.ndarray:
     """L-shape closeness score per candidate yaw (Zhang et al. 2017's criterion)."""
-    c, s = np.cos(thetas)[:, None], np.sin(thetas)[:, None]
-    # heading of yaw ry in (x, z) is (cos ry, -sin ry); lateral (sin ry, cos ry)
-    a = c * xz[None, :, 0] - s * xz[None, :, 1]
-    b = s * xz[None, :, 0] + c * xz[None, :, 1]
-    da = np.minimum(a.max(1, keepdims=True) - a, a - a.min(1, keepdims=True))
-    db = np.minimum(b.max(1, keepdims=True) - b, b - b.min(1, keepdims=True))
-    return (1.0 / np.maximum(np.minimum(da, db), LSHAPE_D0)).sum(axis=1)
+    score = np.zeros(len(thetas))
+    a, b = np.empty(len(xz)), np.empty(len(xz))
+    for k in range(len(thetas)):
+        c, s = np.cos(thetas[k]), np.sin(thetas[k])
+        # heading of yaw ry in (x, z) is (cos ry, -sin ry); lateral (sin ry, cos ry)
+        a[:] = c * xz[:, 0] - s * xz[:, 1]
+        b[:] = s * xz[:, 0] + c * xz[:, 1]
+        a_lo, a_hi, b_lo, b_hi = a.min(), a.max(), b.min(), b.max()
+        for i in range(len(xz)):
+            d = min(min(a_hi - a[i], a[i] - a_lo), min(b_hi - b[i], b[i] - b_lo))
+            score[k] += 1.0 / max(d, LSHAPE_D0)
+    return score
 
 
 def fit_yaw(xz: np.ndarray, ry_prior: float) -> float:
     """The yaw of the rectangle the returns outline, of the four it allows the one nearest ry_prior."""
+    theta = _lshape_angle(np.ascontiguousarray(xz))
+    k = np.round((ry_prior - theta) / (np.pi / 2))
+    return float(wrap_angle(theta + k * np.pi / 2))
+
+
+@numba.njit(cache=True, nogil=True)
+def _lshape_angle(xz: np.ndarray) -> float:
+    """The rectangle's axis angle in [0, 90) degrees: a coarse search, then a fine one around it."""
     if len(xz) > MAX_LSHAPE_POINTS:
-        xz = xz[:: int(np.ceil(len(xz) / MAX_LSHAPE_POINTS))]
+        xz = xz[:: -(-len(xz) // MAX_LSHAPE_POINTS)]
     xz = xz - xz.sum(axis=0) / len(xz)
     coarse = _COARSE[np.argmax(_closeness(xz, _COARSE))]
     fine = coarse + _FINE
-    theta = fine[np.argmax(_closeness(xz, fine))]
-    k = np.round((ry_prior - theta) / (np.pi / 2))
-    return float(wrap_angle(theta + k * np.pi / 2))
+    return fine[np.argmax(_closeness(xz, fine))]
 
 
 def _ground_depth(box: Box2D, calib: Calibration, plane: np.ndarray, cam: int) -> float:
@@ -169,44 +136,6 @@ def _fallback(box, prior, calib, image_size, plane, cam) -> Lifted:
     sol = solve_from_alpha(prior.dims, prior.alpha, box.bbox, calib, image_size, plane, cam,
                            cut_ok=True, contact=contact_of(box.type))
     return Lifted(sol.location, sol.rotation_y, np.asarray(prior.dims, dtype=float), quality=0.2)
-
-
-def _groups(labels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Order that sorts the items by cluster, and where each cluster starts in it: for
-    `ufunc.reduceat` per cluster (the labels run 0..k-1, every one present)."""
-    order = np.argsort(labels, kind="stable")
-    return order, np.flatnonzero(np.concatenate(([True], np.diff(labels[order]) > 0)))
-
-
-def _cluster_bounds(xz: np.ndarray, labels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per cluster, the lower and upper corners of its bird's-eye bounding box."""
-    order, starts = _groups(labels)
-    return (np.minimum.reduceat(xz[order], starts, axis=0),
-            np.maximum.reduceat(xz[order], starts, axis=0))
-
-
-def _merge(xz: np.ndarray, labels: np.ndarray, seed: int, diag: float,
-           bounds: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
-    """The seed cluster plus the nearby clusters that keep the set car-sized: a far object's
-    bumper, bonnet and roof returns fall apart in bird's-eye view but belong together."""
-    take = labels == seed
-    lo, hi = bounds
-    # the gap between bounding boxes bounds the distance from below: only clusters within diag
-    # of the seed's box get the exact point-to-point distance
-    gap = np.maximum(0.0, np.maximum(lo - hi[seed], lo[seed] - hi))
-    near = np.flatnonzero(np.hypot(gap[:, 0], gap[:, 1]) <= diag)
-    seed_xz = xz[take]
-    dist = {int(k): float(np.sqrt(((xz[labels == k][:, None] - seed_xz[None]) ** 2).sum(axis=2).min()))
-            for k in near if k != seed}
-    for k in sorted(dist, key=dist.get):
-        if dist[k] > diag:
-            break
-        trial = take | (labels == k)
-        pts = xz[trial]
-        d = pts - pts.sum(axis=0) / len(pts)
-        if 2 * np.sqrt((d * d).sum(axis=1).max()) <= diag + MERGE_SLACK:
-            take = trial
-    return take
 
 
 def _box_for_yaw(ry: float, oxz: np.ndarray, ou: np.ndarray, oheight: np.ndarray, prior: Prior,
@@ -258,26 +187,6 @@ def _image_depth_check(T: np.ndarray, dims: np.ndarray, ry: float, box: Box2D, s
     return np.array([x, road_y(x, z, plane), z])
 
 
-def _explain_score(u_span, count, gap, width: float, sigma: float):
-    """How well a set of returns explains a 2D box: wide in the image (its column span against the
-    box's width), many returns, its nearest return near the depth the road predicts (gap, m)."""
-    return ((np.minimum(1.0, u_span / width) + 0.05) * np.minimum(1.0, count / 10)
-            * np.exp(-0.5 * (gap / sigma) ** 2))
-
-
-def _seed_clusters(labels: np.ndarray, u: np.ndarray, rng: np.ndarray, width: float, road_d: float,
-                   sigma: float) -> np.ndarray:
-    """The MAX_SEEDS clusters (of MIN_SEED returns or more) that best explain the box, scored all
-    at once."""
-    order, starts = _groups(labels)
-    counts = np.diff(np.append(starts, len(labels)))
-    ptp = np.maximum.reduceat(u[order], starts) - np.minimum.reduceat(u[order], starts)
-    gap = np.minimum.reduceat(rng[order], starts) - road_d
-    score = _explain_score(ptp, counts, gap, width, sigma)
-    seeds = np.flatnonzero(counts >= MIN_SEED)
-    return seeds[np.argsort(-score[seeds], kind="stable")][:MAX_SEEDS]
-
-
 def lift_fit(boxes: list[Box2D], priors: list[Prior], pts: FramePoints, calib: Calibration,
              image_size: tuple[int, int], plane: np.ndarray, cam: int = 2) -> list[Lifted]:
     n = len(boxes)
@@ -301,29 +210,14 @@ def lift_fit(boxes: list[Box2D], priors: list[Prior], pts: FramePoints, calib: C
             out[i] = _fallback(box, prior, calib, image_size, plane, cam)
             continue
         xz = pts.rect[cand][:, [0, 2]]
-        cells, cell_labels, inverse = _bev_clusters(xz)
-        labels = cell_labels[inverse]
-        width = max(box.bbox[2] - box.bbox[0], 1.0)
-        h, w, l = (float(v) for v in prior.dims)
         sigma = _depth_sigma(road_d[i])
         if box.bbox[3] >= image_size[1] - 2.0:  # bottom cut by the border: the road depth only bounds
             sigma = max(sigma, road_d[i])
-        diag = np.hypot(l, w)
-        rng_all = np.linalg.norm(xz - pts.sensor[[0, 2]], axis=1)
-        u_all = pts.uv[cand, 0]
-
-        seeds = _seed_clusters(labels, u_all, rng_all, width, road_d[i], sigma)
-        best, best_score = None, 0.0
-        bounds = _cluster_bounds(cells, cell_labels)
-        for k in seeds:  # the likeliest clusters, each grown by its car-sized neighbours
-            m = _merge(cells, cell_labels, k, diag, bounds)[inverse]
-            if m.sum() < MIN_POINTS:
-                continue
-            sc = float(_explain_score(np.ptp(u_all[m]), m.sum(), rng_all[m].min() - road_d[i],
-                                      width, sigma))
-            if sc > best_score:
-                best, best_score = m, sc
-        if best is None or best_score < 0.02:
+        best, best_score = object_returns(xz, pts.uv[cand, 0],
+                                          np.linalg.norm(xz - pts.sensor[[0, 2]], axis=1),
+                                          max(box.bbox[2] - box.bbox[0], 1.0), road_d[i], sigma,
+                                          float(np.hypot(prior.dims[2], prior.dims[1])))
+        if best_score < 0.02:
             out[i] = _fallback(box, prior, calib, image_size, plane, cam)
             continue
         obj = cand[best]
