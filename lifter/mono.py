@@ -123,6 +123,7 @@ class _Outline:
 
 def _outline(bbox: np.ndarray, calib: Calibration, image_size: tuple[int, int],
              plane: np.ndarray | None, cam: int, cut_ok: bool) -> _Outline:
+    """The yaw-independent half of `solve_translation` (its arguments are documented there)."""
     P = calib.P(cam)
     W, H = image_size
     x1, y1, x2, y2 = (float(v) for v in bbox)
