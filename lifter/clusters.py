@@ -23,7 +23,7 @@ MERGE_SLACK = 0.3      # m, how much larger than the size prior's diagonal a mer
 
 
 @numba.njit(cache=True, nogil=True)
-def explain_score(u_span: float, count: int, gap: float, width: float, sigma: float) -> float:
+def _explain_score(u_span: float, count: int, gap: float, width: float, sigma: float) -> float:
     """How well a set of returns explains a 2D box: wide in the image (its column span against the
     box's width), many returns, its nearest return near the depth the road predicts (gap, m)."""
     return ((min(1.0, u_span / width) + 0.05) * min(1.0, count / 10)
@@ -53,7 +53,7 @@ def object_returns(xz: np.ndarray, u: np.ndarray, rng: np.ndarray, width: float,
         near[c] = min(near[c], rng[i])
     score = np.empty(k)
     for c in range(k):
-        score[c] = explain_score(u_hi[c] - u_lo[c], count[c], near[c] - road_d, width, sigma)
+        score[c] = _explain_score(u_hi[c] - u_lo[c], count[c], near[c] - road_d, width, sigma)
     seeds = np.flatnonzero(count >= MIN_SEED)
     seeds = seeds[np.argsort(-score[seeds], kind="mergesort")][:MAX_SEEDS]
     # each seed grown by its car-sized neighbours; the best explanation wins
@@ -64,7 +64,7 @@ def object_returns(xz: np.ndarray, u: np.ndarray, rng: np.ndarray, width: float,
         n = m.sum()
         if n < MIN_POINTS:
             continue
-        sc = explain_score(u[m].max() - u[m].min(), n, rng[m].min() - road_d, width, sigma)
+        sc = _explain_score(u[m].max() - u[m].min(), n, rng[m].min() - road_d, width, sigma)
         if sc > best_score:
             best, best_score = m, sc
     return best, best_score

@@ -53,14 +53,23 @@ def road_y(x: float, z: float, plane: np.ndarray) -> float:
 
 
 @numba.njit(cache=True, nogil=True)
+def _corner_offset(k: int, h: float, w: float, l: float, c: float,
+                   s: float) -> tuple[float, float, float]:
+    """Corner k (kitti.boxes order) of a box of size (h, w, l) and yaw (cos c, sin s), from its
+    bottom centre."""
+    lx, lz = _UNIT[k, 0] * l, _UNIT[k, 2] * w
+    return c * lx + s * lz, _UNIT[k, 1] * h, -s * lx + c * lz
+
+
+@numba.njit(cache=True, nogil=True)
 def corner_columns(x: float, y: float, z: float, h: float, w: float, l: float, ry: float,
                    P: np.ndarray) -> np.ndarray:
     """Image columns of the 8 corners (kitti.boxes order) of the box [x, y, z, h, w, l, ry]."""
     c, s = np.cos(ry), np.sin(ry)
     u = np.empty(8)
     for k in range(8):
-        lx, ly, lz = _UNIT[k, 0] * l, _UNIT[k, 1] * h, _UNIT[k, 2] * w
-        px, py, pz = c * lx + s * lz + x, ly + y, -s * lx + c * lz + z
+        ox, oy, oz = _corner_offset(k, h, w, l, c, s)
+        px, py, pz = ox + x, oy + y, oz + z
         u[k] = ((P[0, 0] * px + P[0, 1] * py + P[0, 2] * pz + P[0, 3])
                 / (P[2, 0] * px + P[2, 1] * py + P[2, 2] * pz + P[2, 3]))
     return u
@@ -227,9 +236,7 @@ def translation(pxz: np.ndarray, pu: np.ndarray, h: float, w: float, l: float, r
             us = bbox[0] if side == 0 else bbox[2]
             pick = np.argmin(u) if side == 0 else np.argmax(u)
             pr = P[0] - us * P[2]
-            ox = c * (_UNIT[pick, 0] * l) + s * (_UNIT[pick, 2] * w)
-            oy = _UNIT[pick, 1] * h
-            oz = -s * (_UNIT[pick, 0] * l) + c * (_UNIT[pick, 2] * w)
+            ox, oy, oz = _corner_offset(pick, h, w, l, c, s)
             r_0 = pr[3] + (pr[0] * ox + pr[1] * oy + pr[2] * oz)
             # the row in (x, y, z) with y on the road: a row in (x, z)
             a0 = pr[0] - pr[1] * n0 / n1
