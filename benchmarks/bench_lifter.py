@@ -17,7 +17,8 @@ import numpy as np
 import torch
 
 from kitti.dataset import KittiDataset
-from lifter.pipeline import METHODS, lift_frame, oracle_boxes, truth_priors
+from lifter.methods import METHODS
+from lifter.pipeline import lift_frame, oracle_boxes, truth_priors
 from lifter.predictor import DEFAULT_WEIGHTS, Predictor
 
 

@@ -18,7 +18,8 @@ from pathlib import Path
 from kitti.dataset import KittiDataset
 from kitti.eval import evaluate, load_annotations
 from kitti.io import atomic_write_text
-from lifter.pipeline import METHODS, lift_dataset
+from lifter.methods import METHODS
+from lifter.pipeline import lift_dataset
 
 
 def _fmt(v) -> str:
@@ -48,7 +49,8 @@ def main() -> None:
                 rows.append((label, method, *image_only_done[method]))
                 continue
             pred_dir = out / f"{label}_{method}"
-            lift_dataset(path, args.boxes, method, pred_dir, args.split, priors=args.priors,
+            detections = None if args.boxes == "gt" else Path(args.boxes)
+            lift_dataset(path, detections, method, pred_dir, args.split, priors=args.priors,
                          weights=args.weights)
             dt = load_annotations(pred_dir, ids=ids)
             r = evaluate(gt, dt, classes=("Car",), metrics=("bev", "3d"))
@@ -56,8 +58,8 @@ def main() -> None:
             vals = (a["3d"]["R40"], al["3d"]["R40"], a["bev"]["R40"])
             results[f"{label}/{method}"] = {"3d@0.7": vals[0], "3d@0.5": vals[1], "bev@0.7": vals[2],
                                             "n_gt": r.to_json()["n_gt"]["Car"]}
-            if method == "mono" or (method == "roadside" and any(
-                    (Path(path) / "training" / "planes").glob("*.txt"))):
+            has_planes = any((Path(path) / "training" / "planes").glob("*.txt"))
+            if not METHODS[method].loads_scan(has_planes):
                 image_only_done[method] = list(vals)
             rows.append((label, method, *vals))
     lines = ["| LiDAR | method | Car 3D AP R40 @0.7 (E / M / H) | 3D @0.5 (E / M / H) | BEV @0.7 (E / M / H) |",

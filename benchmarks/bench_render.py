@@ -26,6 +26,7 @@ from simgen.look import apply_look
 from simgen.render import build_scene, renderer
 from simgen.sample import sample_world
 from simgen.spec import load_spec
+from testbed.backends import LocalBackend
 
 
 def render_breakdown(spec, n: int) -> None:
@@ -65,7 +66,8 @@ def throughput(spec, n: int, workers: int, lidar: bool) -> None:
     out = Path(tempfile.mkdtemp(prefix="bench_render_", dir="data" if Path("data").is_dir() else None))
     try:
         t0 = time.perf_counter()
-        generate(s, out, frames=n, workers=workers, progress=False)
+        with LocalBackend(workers) as backend:
+            generate(s, out, frames=n, backend=backend)
         dt = time.perf_counter() - t0
     finally:
         shutil.rmtree(out)

@@ -30,7 +30,8 @@ def main() -> None:
                          split="val", data_dir=Path(tmp))
         p = plan(spec)
         scene_root = p.root / scene_name(spec.scenes[0])
-        stages.generate(spec.scenes[0].spec, scene_root / "base", args.frames, None, 2)
+        with LocalBackend(2) as backend:
+            stages.generate(spec.scenes[0].spec, scene_root / "base", args.frames, None, backend)
         n_val = len((scene_root / "base" / "ImageSets" / "val.txt").read_text().split())
         print(f"{args.frames} frames ({n_val} in val), {len(p.scans)} scans x {n_val} frames, "
               f"{len(p.points)} lift+evaluate points")
@@ -40,7 +41,8 @@ def main() -> None:
             for d in p.root.glob("points-*"):
                 shutil.rmtree(d)
             t = time.perf_counter()
-            execute(p, LocalBackend(workers), workers)
+            with LocalBackend(workers) as backend:
+                execute(p, backend)
             dt = time.perf_counter() - t
             frames = len(p.points) * n_val
             rate = frames / dt

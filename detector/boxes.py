@@ -81,11 +81,6 @@ def input_size_for(src_w: int, src_h: int, width: int, stride: int = 32) -> tupl
     return width, int(math.ceil(h / stride) * stride)
 
 
-def xyxy_to_cxcywh(b: torch.Tensor) -> torch.Tensor:
-    return torch.stack(((b[..., 0] + b[..., 2]) / 2, (b[..., 1] + b[..., 3]) / 2,
-                        b[..., 2] - b[..., 0], b[..., 3] - b[..., 1]), -1)
-
-
 def cxcywh_to_xyxy(b: torch.Tensor) -> torch.Tensor:
     return torch.stack((b[..., 0] - b[..., 2] / 2, b[..., 1] - b[..., 3] / 2,
                         b[..., 0] + b[..., 2] / 2, b[..., 1] + b[..., 3] / 2), -1)

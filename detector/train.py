@@ -159,6 +159,93 @@ CSV_FIELDS = ["epoch", "lr", "loss", "box", "obj", "cls", "seconds"] + \
     [f"{c}_2d_R40_{d}" for c in CLASSES for d in ("easy", "moderate", "hard")]
 
 
+def _checkpoints(cfg: TrainConfig, ck_path: Path,
+                 resume: bool) -> tuple[TrainConfig, dict | None, dict | None]:
+    """The checkpoint to resume from and the weights to start from (at most one of them); the
+    network input size comes with either, since the weights only fit that size."""
+    ck = torch.load(ck_path, map_location="cpu", weights_only=True) if resume and ck_path.is_file() else None
+    init = torch.load(cfg.init, map_location="cpu", weights_only=True) if cfg.init and ck is None else None
+    if ck is not None:
+        cfg = replace(cfg, img_size=tuple(ck["input_size"]))
+    elif init is not None and cfg.img_size is None:
+        cfg = replace(cfg, img_size=tuple(init["input_size"]))
+    return cfg, ck, init
+
+
+def _model_config(cfg: TrainConfig, data: DetectionData, ck: dict | None, init: dict | None) -> ModelConfig:
+    """The architecture of the checkpoint or the init weights, else the preset with anchors fitted
+    to this data."""
+    if ck is not None:
+        return ModelConfig.from_dict(ck["model_cfg"])
+    if init is not None:
+        return ModelConfig.from_dict(init["model_cfg"])
+    return ModelConfig.from_preset(cfg.preset, num_classes=len(CLASSES), activation=cfg.activation,
+                                   anchors=fit_anchors(data, cfg.seed))
+
+
+def _restore(ck: dict, model: FlexiNet, ema: ModelEMA, opt: torch.optim.SGD) -> tuple[int, list[dict]]:
+    """Loads a checkpoint's full training state (exact resume); returns the next epoch and the history."""
+    model.load_state_dict(ck["train_model"])
+    ema.ema.load_state_dict(ck["model"])
+    ema.updates = int(ck["ema_updates"])
+    opt.load_state_dict(ck["optimizer"])
+    return int(ck["epoch"]) + 1, [dict(r) for r in ck["history"]]
+
+
+def _write_anchors(out: Path, data: DetectionData, anchors: tuple[tuple[float, float], ...]) -> None:
+    """anchors.txt, with the best possible recall of the anchors on the training boxes."""
+    bpr = best_possible_recall(data.box_sizes(), np.array(anchors))
+    atomic_write_text(out / "anchors.txt", "".join(f"{w:.2f} {h:.2f}\n" for w, h in anchors)
+                      + f"# best possible recall {bpr:.4f}\n")
+
+
+def _set_lr(opt: torch.optim.SGD, cfg: TrainConfig, it: int, epoch_pos: float, warmup_iters: int) -> None:
+    """Learning rate and momentum of one iteration: the schedule, ramped up during warm-up."""
+    lr_f = lr_factor(cfg, epoch_pos)
+    for g in opt.param_groups:
+        if it < warmup_iters:
+            w = it / warmup_iters
+            g["lr"] = cfg.lr * lr_f * w
+            g["momentum"] = 0.8 + (cfg.momentum - 0.8) * w
+        else:
+            g["lr"] = cfg.lr * lr_f
+            g["momentum"] = cfg.momentum
+
+
+def _train_epoch(cfg: TrainConfig, epoch: int, n: int, model: FlexiNet, criterion: DetectionLoss,
+                 opt: torch.optim.SGD, ema: ModelEMA, aug: Augmenter) -> list[float]:
+    """One epoch over the n images in an order seeded by (seed, epoch), so a resumed run repeats
+    it exactly; returns the mean total, box, obj and cls losses per batch."""
+    nb = math.ceil(n / cfg.batch)
+    warmup_iters = max(round(cfg.warmup_epochs * nb), 1)
+    model.train()
+    acfg = cfg.augment if epoch < cfg.epochs - cfg.close_mosaic else \
+        replace(AugmentConfig.off(), fliplr=cfg.augment.fliplr, hsv=cfg.augment.hsv)
+    order = np.random.default_rng([cfg.seed, epoch, 1 << 20]).permutation(n)
+    sums = torch.zeros(4)
+    bar = tqdm(range(nb), desc=f"epoch {epoch + 1}/{cfg.epochs}", disable=not cfg.progress, leave=False)
+    for bi in bar:
+        _set_lr(opt, cfg, epoch * nb + bi, epoch + bi / nb, warmup_iters)
+        imgs, targets = collate([aug(int(i), epoch, acfg) for i in order[bi * cfg.batch:(bi + 1) * cfg.batch]])
+        loss, parts = criterion(model(imgs), targets)
+        opt.zero_grad(set_to_none=True)
+        loss.backward()
+        nn.utils.clip_grad_norm_(model.parameters(), 10.0)  # guards the first, large-loss steps
+        opt.step()
+        ema.update(model)
+        sums += torch.cat((parts.sum().view(1), parts))
+        bar.set_postfix(loss=f"{sums[0].item() / (bi + 1):.4f}")
+    return (sums / nb).tolist()
+
+
+def _add_ap(row: dict, cfg: TrainConfig, model: FlexiNet, img_size: tuple[int, int]) -> None:
+    """Adds the model's 2D AP|R40 per class and difficulty on the validation split to the row."""
+    res = evaluate_model(model, img_size, cfg.val_data or cfg.data[0], cfg.val_split)
+    for c in CLASSES:
+        for d, v in zip(("easy", "moderate", "hard"), res.ap[c]["2d"]["R40"]):
+            row[f"{c}_2d_R40_{d}"] = float(v)
+
+
 def train(cfg: TrainConfig, resume: bool = False, stop_after: int | None = None) -> dict:
     """Train; returns the last epoch's row. With resume, continues from out/last.pt exactly.
     stop_after ends this call after that many epochs (a time-boxed chunk; resume continues)."""
@@ -167,80 +254,29 @@ def train(cfg: TrainConfig, resume: bool = False, stop_after: int | None = None)
     out = Path(cfg.out)
     out.mkdir(parents=True, exist_ok=True)
     ck_path = out / "last.pt"
-    ck = torch.load(ck_path, map_location="cpu", weights_only=True) if resume and ck_path.is_file() else None
-    init = torch.load(cfg.init, map_location="cpu", weights_only=True) if cfg.init and ck is None else None
-    if ck is not None:
-        cfg = replace(cfg, img_size=tuple(ck["input_size"]))
-    elif init is not None and cfg.img_size is None:
-        cfg = replace(cfg, img_size=tuple(init["input_size"]))
+    cfg, ck, init = _checkpoints(cfg, ck_path, resume)
     img_size = cfg.img_size or _default_size(cfg.data[0], cfg.train_split)
     data = DetectionData(cfg.data, cfg.train_split, img_size, cfg.progress)
-    if ck is not None:
-        mcfg = ModelConfig.from_dict(ck["model_cfg"])
-    elif init is not None:
-        mcfg = ModelConfig.from_dict(init["model_cfg"])
-    else:
-        mcfg = ModelConfig.from_preset(cfg.preset, num_classes=len(CLASSES), activation=cfg.activation,
-                                       anchors=fit_anchors(data, cfg.seed))
+    mcfg = _model_config(cfg, data, ck, init)
     model = FlexiNet(mcfg)
     if init is not None:
         model.load_state_dict(init["model"])
     criterion = DetectionLoss(model.head, cfg.box_loss)
     opt = make_optimizer(model, cfg)
     ema = ModelEMA(model, cfg.ema_decay)
-    start_epoch, history = 0, []
-    if ck is not None:
-        model.load_state_dict(ck["train_model"])
-        ema.ema.load_state_dict(ck["model"])
-        ema.updates = int(ck["ema_updates"])
-        opt.load_state_dict(ck["optimizer"])
-        start_epoch = int(ck["epoch"]) + 1
-        history = [dict(r) for r in ck["history"]]
-    bpr = best_possible_recall(data.box_sizes(), np.array(mcfg.anchors))
-    atomic_write_text(out / "anchors.txt", "".join(f"{w:.2f} {h:.2f}\n" for w, h in mcfg.anchors)
-                      + f"# best possible recall {bpr:.4f}\n")
+    start_epoch, history = _restore(ck, model, ema, opt) if ck is not None else (0, [])
+    _write_anchors(out, data, mcfg.anchors)
     aug = Augmenter(data, cfg.augment, cfg.seed)
     n = len(data)
-    nb = math.ceil(n / cfg.batch)
-    warmup_iters = max(round(cfg.warmup_epochs * nb), 1)
     row: dict = history[-1] if history else {}
     end_epoch = cfg.epochs if stop_after is None else min(cfg.epochs, start_epoch + stop_after)
     for epoch in range(start_epoch, end_epoch):
         t0 = time.time()
-        model.train()
-        acfg = cfg.augment if epoch < cfg.epochs - cfg.close_mosaic else \
-            replace(AugmentConfig.off(), fliplr=cfg.augment.fliplr, hsv=cfg.augment.hsv)
-        order = np.random.default_rng([cfg.seed, epoch, 1 << 20]).permutation(n)
-        sums = torch.zeros(4)
-        bar = tqdm(range(nb), desc=f"epoch {epoch + 1}/{cfg.epochs}", disable=not cfg.progress, leave=False)
-        for bi in bar:
-            it = epoch * nb + bi
-            lr_f = lr_factor(cfg, epoch + bi / nb)
-            for gi, g in enumerate(opt.param_groups):
-                if it < warmup_iters:
-                    w = it / warmup_iters
-                    g["lr"] = cfg.lr * lr_f * w
-                    g["momentum"] = 0.8 + (cfg.momentum - 0.8) * w
-                else:
-                    g["lr"] = cfg.lr * lr_f
-                    g["momentum"] = cfg.momentum
-            imgs, targets = collate([aug(int(i), epoch, acfg) for i in order[bi * cfg.batch:(bi + 1) * cfg.batch]])
-            loss, parts = criterion(model(imgs), targets)
-            opt.zero_grad(set_to_none=True)
-            loss.backward()
-            nn.utils.clip_grad_norm_(model.parameters(), 10.0)  # guards the first, large-loss steps
-            opt.step()
-            ema.update(model)
-            sums += torch.cat((parts.sum().view(1), parts))
-            bar.set_postfix(loss=f"{sums[0].item() / (bi + 1):.4f}")
-        avg = (sums / nb).tolist()
+        avg = _train_epoch(cfg, epoch, n, model, criterion, opt, ema, aug)
         row = {"epoch": epoch + 1, "lr": opt.param_groups[0]["lr"], "loss": avg[0], "box": avg[1],
                "obj": avg[2], "cls": avg[3], "seconds": time.time() - t0}
         if cfg.eval_every and ((epoch + 1) % cfg.eval_every == 0 or epoch + 1 == cfg.epochs):
-            res = evaluate_model(ema.ema, img_size, cfg.val_data or cfg.data[0], cfg.val_split)
-            for c in CLASSES:
-                for d, v in zip(("easy", "moderate", "hard"), res.ap[c]["2d"]["R40"]):
-                    row[f"{c}_2d_R40_{d}"] = float(v)
+            _add_ap(row, cfg, ema.ema, img_size)
         history.append(row)
         save_checkpoint(ck_path, ema.ema, img_size, {
             "train_model": model.state_dict(), "optimizer": opt.state_dict(), "epoch": epoch,

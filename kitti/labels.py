@@ -19,8 +19,6 @@ from .io import atomic_write_text
 
 FIELDS = ("type", "truncated", "occluded", "alpha", "x1", "y1", "x2", "y2",
           "h", "w", "l", "x", "y", "z", "rotation_y", "score")
-KITTI_TYPES = ("Car", "Van", "Truck", "Pedestrian", "Person_sitting", "Cyclist", "Tram", "Misc",
-               "DontCare")
 
 
 @dataclass

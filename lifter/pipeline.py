@@ -14,21 +14,14 @@ from kitti.dataset import KittiDataset
 from kitti.errors import KittiFormatError
 from kitti.labels import Object3D, read_label, write_label
 
-from .fit import lift_fit
-from .frustum import lift_frustum
-from .ground import fit_ground_plane, normalise_plane
-from .mono import contact_of, solve_from_alpha
-from .points import frame_points
-from .roadside import lift_roadside
-from .types import Box2D, Lifted, Prior
+from .methods import Frame, get_method
+from .types import Box2D, Prior
 
-METHODS = ("frustum", "fit", "mono", "roadside")
-LIDAR_METHODS = ("frustum", "fit")
 # Oracle boxes: every labelled road user. The evaluation scores Car/Pedestrian/Cyclist and ignores
 # their neighbour classes (Van, Person_sitting); lifting the other vehicles too costs nothing there
 # and lets `fit` claim their returns, so a van in front is not mistaken for the car behind it.
 ORACLE_CLASSES = ("Car", "Van", "Truck", "Pedestrian", "Person_sitting", "Cyclist", "Tram")
-FLAT_ROAD = np.array([0.0, -1.0, 0.0, 1.65])  # camera 1.65 m above a level road (KITTI rig)
+
 
 def oracle_boxes(labels: list[Object3D], classes=ORACLE_CLASSES) -> list[Box2D]:
     """The label_2 boxes of the road users, score 1."""
@@ -61,48 +54,16 @@ def truth_priors(boxes: list[Box2D], labels: list[Object3D]) -> list[Prior]:
     return out
 
 
-def _mono(box: Box2D, prior: Prior, calib: Calibration, size, plane) -> Lifted:
-    """Deep3DBox with the road: the 2D box's sides plus the bottom centre on the road plane (from
-    planes/, or KITTI's flat road 1.65 m below the camera); a box cut on too many sides by the
-    border may also use its border sides."""
-    contact = contact_of(box.type)
-    try:
-        sol = solve_from_alpha(prior.dims, prior.alpha, box.bbox, calib, size, plane, contact=contact)
-        return Lifted(sol.location, sol.rotation_y, np.asarray(prior.dims, dtype=float), 0.5)
-    except ValueError:
-        sol = solve_from_alpha(prior.dims, prior.alpha, box.bbox, calib, size, plane, cut_ok=True,
-                               contact=contact)
-        return Lifted(sol.location, sol.rotation_y, np.asarray(prior.dims, dtype=float), 0.3)
-
-
 def lift_frame(method: str, boxes: list[Box2D], priors: list[Prior], calib: Calibration,
                image_size: tuple[int, int], velodyne: np.ndarray | None,
                plane_file: np.ndarray | None) -> list[Object3D]:
-    if method not in METHODS:
-        raise ValueError(f"unknown lifting method '{method}' (one of {', '.join(METHODS)})")
+    """One frame's 2D boxes as complete KITTI result lines (score = box score x lift quality)."""
+    m = get_method(method)
     if not boxes:
         return []
-    if method in LIDAR_METHODS and velodyne is None:
+    if m.needs_scan and velodyne is None:
         raise ValueError(f"method '{method}' needs velodyne/ scans")
-    road = normalise_plane(plane_file) if plane_file is not None else FLAT_ROAD
-    if method == "mono":
-        lifted = [_mono(b, p, calib, image_size, road) for b, p in zip(boxes, priors)]
-    elif method == "roadside":
-        if plane_file is None and velodyne is None:
-            raise ValueError("method 'roadside' needs the road plane (planes/) or velodyne/")
-        if plane_file is None:
-            road = fit_ground_plane(frame_points(velodyne, calib, None).rect)
-        lifted = lift_roadside(boxes, priors, calib, image_size, road)
-    elif method == "frustum":
-        pts = frame_points(velodyne, calib, None)
-        found = lift_frustum(boxes, priors, pts, calib)
-        lifted = [f if f is not None else _mono(b, p, calib, image_size, road)
-                  for f, b, p in zip(found, boxes, priors)]
-    else:  # fit: the road plane from this frame's own returns
-        pts = frame_points(velodyne, calib, None)
-        road = fit_ground_plane(pts.rect)
-        pts = pts.with_plane(road)
-        lifted = lift_fit(boxes, priors, pts, calib, image_size, road)
+    lifted = m.run(Frame(boxes, priors, calib, image_size, velodyne, plane_file))
     out = []
     for b, lf in zip(boxes, lifted):
         x, _, z = lf.location
@@ -113,13 +74,16 @@ def lift_frame(method: str, boxes: list[Box2D], priors: list[Prior], calib: Cali
     return out
 
 
-def lift_dataset(data: str | Path, boxes: str, method: str, out: str | Path, split: str | None,
-                 priors: str = "net", weights: str | Path | None = None,
+def lift_dataset(data: str | Path, detections: Path | None, method: str, out: str | Path,
+                 split: str | None, priors: str = "net", weights: str | Path | None = None,
                  progress: bool = True) -> int:
-    """Write out/<id>.txt for every frame of the split; returns the number of 3D boxes written."""
+    """Write out/<id>.txt for every frame of the split; returns the number of 3D boxes written.
+
+    `detections`: a folder of detection result files, or None for the labels' boxes (oracle)."""
+    m = get_method(method)
     ds = KittiDataset(data)
     ids = ds.ids(split)
-    det_dir = None if boxes == "gt" else Path(boxes)
+    det_dir = None if detections is None else Path(detections)
     if det_dir is not None and not det_dir.is_dir():
         raise KittiFormatError("detection folder not found", det_dir)
     if priors == "net":
@@ -137,8 +101,9 @@ def lift_dataset(data: str | Path, boxes: str, method: str, out: str | Path, spl
             pr = truth_priors(b2d, labels)
         else:
             pr = predictor(ds.image(fid), b2d) if b2d else []
-        velo = ds.velodyne(fid) if method in ("frustum", "fit", "roadside") else None
-        objs = lift_frame(method, b2d, pr, ds.calib(fid), ds.image_size(fid), velo, ds.planes(fid))
+        planes = ds.planes(fid)
+        velo = ds.velodyne(fid) if m.loads_scan(planes is not None) else None
+        objs = lift_frame(method, b2d, pr, ds.calib(fid), ds.image_size(fid), velo, planes)
         write_label(out / f"{fid}.txt", objs)
         total += len(objs)
     return total

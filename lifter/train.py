@@ -111,29 +111,27 @@ def evaluate(net: SizeOrientationNet, s: Samples, size: int, bs: int = 128) -> d
             "n": n}
 
 
-def train(data: str | Path, out: str | Path, epochs: int = 30, crop_size: int = 96,
-          width: float = 0.5, batch_size: int = 64, lr: float = 2e-3, seed: int = 0,
-          threads: int = 2, train_split: str | None = "train", val_split: str | None = "val",
-          resume: bool = False, init: str | Path | None = None) -> dict:
-    torch.manual_seed(seed)
-    torch.set_num_threads(threads)
-    rng = np.random.default_rng(seed)
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    ds = KittiDataset(data)
-    root = Path(data)
+def _split_ids(ds: KittiDataset, root: Path, train_split: str | None,
+               val_split: str | None) -> tuple[list[str], list[str]]:
+    """Training and validation frames; without validation frames, every 10th training frame is
+    held out, as the best epoch is picked on them."""
     if train_split and (root / "ImageSets" / f"{train_split}.txt").exists():
         tr_ids = ds.ids(train_split)
         va_ids = ds.ids(val_split) if val_split and (root / "ImageSets" / f"{val_split}.txt").exists() else []
     else:
         tr_ids, va_ids = ds.ids(), []
-    if not va_ids:  # hold out every 10th training frame to pick the best epoch
+    if not va_ids:
         va_ids, tr_ids = tr_ids[::10], [f for i, f in enumerate(tr_ids) if i % 10]
-    tr = collect(ds, tr_ids, crop_size, "train")
-    va = collect(ds, va_ids, crop_size, "val")
+    return tr_ids, va_ids
+
+
+def _network(tr: Samples, crop_size: int, width: float,
+             init: str | Path | None) -> tuple[SizeOrientationNet, NetConfig]:
+    """A fresh network with the training data's class means, or (fine-tuning) the init weights,
+    whose class means stay. The fresh one is built either way: it draws from torch's seeded RNG."""
     cfg = NetConfig(width=width, crop=crop_size, class_means=class_means(tr))
     net = SizeOrientationNet(cfg)
-    if init is not None:  # fine-tuning: start from these weights (their class means stay)
+    if init is not None:
         ck = torch.load(init, map_location="cpu", weights_only=False)
         net = SizeOrientationNet(NetConfig(**ck["config"]) if isinstance(ck.get("config"), dict)
                                  else ck["config"])
@@ -142,50 +140,87 @@ def train(data: str | Path, out: str | Path, epochs: int = 30, crop_size: int = 
         if (cfg.crop, cfg.width) != (crop_size, width):
             raise ValueError(f"--init {init}: crop {net.cfg.crop} / width {net.cfg.width} differ from "
                              f"--crop-size {crop_size} / --width {width}")
+    return net, cfg
+
+
+def _resume(path: Path, net: SizeOrientationNet, opt: torch.optim.Optimizer,
+            sched: torch.optim.lr_scheduler.LRScheduler) -> tuple[int, float, int]:
+    """Loads the training state of last.pt; returns the next epoch, the best loss and the stale count."""
+    ck = torch.load(path, map_location="cpu", weights_only=False)
+    net.load_state_dict(ck["model"])
+    opt.load_state_dict(ck["optim"])
+    sched.load_state_dict(ck["sched"])
+    return ck["epoch"] + 1, ck["best_loss"], ck["stale"]
+
+
+def _train_epoch(net: SizeOrientationNet, tr: Samples, opt: torch.optim.Optimizer, rng: np.random.Generator,
+                 crop_size: int, batch_size: int, desc: str) -> bool:
+    """One pass over the training samples in rng's order; returns whether any step was taken
+    (the schedule advances only then)."""
+    net.train()
+    perm = rng.permutation(len(tr.cls))
+    bar = tqdm(range(0, len(perm), batch_size), desc=desc, leave=False)
+    stepped = False
+    for start in bar:
+        idx = perm[start:start + batch_size]
+        if len(idx) < 2:  # batch norm needs two samples
+            continue
+        x, cls, dims_t, bin_t, cs_t, cover_t = batch(tr, idx, crop_size, rng)
+        loss, parts = loss_fn(net(x, cls), dims_t, bin_t, cs_t, cover_t)
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+        stepped = True
+        bar.set_postfix(loss=f"{loss.item():.3f}", **{k: f"{v:.3f}" for k, v in parts.items()})
+    return stepped
+
+
+def _save_epoch(out: Path, ck: dict, improved: bool) -> None:
+    """last.pt every epoch (for resume), best.pt (what is served) when the validation loss improved,
+    and the epoch's line in log.jsonl."""
+    with atomic_path(out / "last.pt") as tmp:
+        torch.save(ck, tmp)
+    if improved:
+        with atomic_path(out / "best.pt") as tmp:
+            torch.save({k: ck[k] for k in ("model", "config", "epoch", "metrics", "seed", "data")}, tmp)
+    with open(out / "log.jsonl", "a") as f:
+        f.write(json.dumps(ck["metrics"]) + "\n")
+
+
+def train(data: str | Path, out: str | Path, epochs: int = 30, crop_size: int = 96,
+          width: float = 0.5, batch_size: int = 64, lr: float = 2e-3, seed: int = 0,
+          threads: int = 2, train_split: str | None = "train", val_split: str | None = "val",
+          resume: bool = False, init: str | Path | None = None) -> dict:
+    """Trains into `out` (last.pt, best.pt, log.jsonl, summary.json) and returns the summary;
+    stops after PATIENCE epochs without a better validation loss."""
+    torch.manual_seed(seed)
+    torch.set_num_threads(threads)
+    rng = np.random.default_rng(seed)
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    ds = KittiDataset(data)
+    tr_ids, va_ids = _split_ids(ds, Path(data), train_split, val_split)
+    tr = collect(ds, tr_ids, crop_size, "train")
+    va = collect(ds, va_ids, crop_size, "val")
+    net, cfg = _network(tr, crop_size, width, init)
     opt = torch.optim.Adam(net.parameters(), lr=lr, weight_decay=1e-5)
     sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=epochs)
     start_epoch, best_loss, stale = 0, float("inf"), 0
     if resume and (out / "last.pt").exists():
-        ck = torch.load(out / "last.pt", map_location="cpu", weights_only=False)
-        net.load_state_dict(ck["model"])
-        opt.load_state_dict(ck["optim"])
-        sched.load_state_dict(ck["sched"])
-        start_epoch, best_loss, stale = ck["epoch"] + 1, ck["best_loss"], ck["stale"]
+        start_epoch, best_loss, stale = _resume(out / "last.pt", net, opt, sched)
         rng = np.random.default_rng([seed, start_epoch])
     log = []
     for epoch in range(start_epoch, epochs):
-        net.train()
-        perm = rng.permutation(len(tr.cls))
-        bar = tqdm(range(0, len(perm), batch_size), desc=f"epoch {epoch + 1}/{epochs}", leave=False)
-        stepped = False
-        for start in bar:
-            idx = perm[start:start + batch_size]
-            if len(idx) < 2:  # batch norm needs two samples
-                continue
-            x, cls, dims_t, bin_t, cs_t, cover_t = batch(tr, idx, crop_size, rng)
-            loss, parts = loss_fn(net(x, cls), dims_t, bin_t, cs_t, cover_t)
-            opt.zero_grad()
-            loss.backward()
-            opt.step()
-            stepped = True
-            bar.set_postfix(loss=f"{loss.item():.3f}", **{k: f"{v:.3f}" for k, v in parts.items()})
-        if stepped:
+        if _train_epoch(net, tr, opt, rng, crop_size, batch_size, f"epoch {epoch + 1}/{epochs}"):
             sched.step()
         metrics = {"epoch": epoch + 1, **evaluate(net, va, crop_size)}
         log.append(metrics)
         tqdm.write(json.dumps(metrics))
         improved = metrics["loss"] < best_loss
         best_loss, stale = (metrics["loss"], 0) if improved else (best_loss, stale + 1)
-        ck = {"model": net.state_dict(), "config": cfg.to_dict(), "epoch": epoch, "metrics": metrics,
-              "optim": opt.state_dict(), "sched": sched.state_dict(), "best_loss": best_loss,
-              "stale": stale, "seed": seed, "data": str(data)}
-        with atomic_path(out / "last.pt") as tmp:
-            torch.save(ck, tmp)
-        if improved:
-            with atomic_path(out / "best.pt") as tmp:
-                torch.save({k: ck[k] for k in ("model", "config", "epoch", "metrics", "seed", "data")}, tmp)
-        with open(out / "log.jsonl", "a") as f:
-            f.write(json.dumps(metrics) + "\n")
+        _save_epoch(out, {"model": net.state_dict(), "config": cfg.to_dict(), "epoch": epoch,
+                          "metrics": metrics, "optim": opt.state_dict(), "sched": sched.state_dict(),
+                          "best_loss": best_loss, "stale": stale, "seed": seed, "data": str(data)}, improved)
         if stale >= PATIENCE:
             break
     summary = {"best_val_loss": best_loss, "epochs_run": len(log), "train_samples": len(tr.cls),

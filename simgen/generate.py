@@ -12,19 +12,17 @@ where it stopped and never leaves a half-written frame.
 from __future__ import annotations
 
 import json
-import os
 import zlib
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
-from multiprocessing import get_context
 from pathlib import Path
 
 import cv2
 import numpy as np
-from tqdm import tqdm
 
 from kitti.calib import write_calib
+from kitti.derived import MANIFEST, dump_json
 from kitti.io import atomic_write_bytes, atomic_write_text
+from kitti.jobs import Backend, InProcess
 from kitti.labels import write_label
 from kitti.planes import write_plane
 from kitti.splits import write_split
@@ -34,11 +32,11 @@ from .factors import factor_rng
 from .labels import derive
 from .look import apply_look
 from .render import render
+from .rescan import lidar_seed
 from .sample import sample_world
-from .spec import LidarSection, SceneSpec, spec_to_dict
+from .spec import SceneSpec, spec_to_dict
 
 DEPTH_SCALE = 256.0
-MANIFEST = "simgen.json"
 
 
 @dataclass(frozen=True)
@@ -47,7 +45,6 @@ class Job:
     seed: int
     index: int
     root: Path
-    lidar: LidarSection | None
 
 
 def frame_id(index: int) -> str:
@@ -80,14 +77,12 @@ def decode_depth(png16: np.ndarray) -> np.ndarray:
 
 
 def _lidar_api():
-    """simgen.lidar, and the scan seed its `testbed rescan` uses too (a rescan with the same
-    sensor then reproduces the frame's scan bit for bit)."""
+    """simgen.lidar, imported only when a frame has a LiDAR."""
     try:
         from . import lidar
-        from .lidar.dataset import lidar_seed
     except ImportError as e:
         raise RuntimeError(f"the LiDAR simulation (simgen.lidar) cannot be imported: {e}") from None
-    return lidar, lidar_seed
+    return lidar
 
 
 def make_frame(job: Job) -> str:
@@ -95,7 +90,8 @@ def make_frame(job: Job) -> str:
     fid = frame_id(job.index)
     training = job.root / "training"
     meta_path = training / "meta" / f"{fid}.json"
-    if meta_path.exists() and all(p.exists() for p in frame_files(training, fid, job.lidar is not None)):
+    section = job.spec.lidar
+    if meta_path.exists() and all(p.exists() for p in frame_files(training, fid, section is not None)):
         return fid
     world = sample_world(job.spec, job.seed, job.index)
     out = render(world)
@@ -106,13 +102,13 @@ def make_frame(job: Job) -> str:
     objects, truths = derive(world, out.instance, job.spec.labels)
     counts = None
     lidar_info = None
-    if job.lidar is not None:
-        lidar, lidar_seed = _lidar_api()
-        lspec = lidar.preset(job.lidar.preset, beams=job.lidar.beams, max_range=job.lidar.max_range)
+    if section is not None:
+        lidar = _lidar_api()
+        lspec = lidar.preset(section.preset, beams=section.beams, max_range=section.max_range)
         scan = lidar.scan(world, lspec, lidar_seed(job.seed, job.index))
         lidar.write_scan(training, fid, scan)
         counts = scan.point_counts()
-        lidar_info = job.lidar.model_dump()
+        lidar_info = section.model_dump()
     atomic_write_bytes(training / "image_2" / f"{fid}.png", _png(image[..., ::-1]))
     atomic_write_bytes(training / "depth_2" / f"{fid}.png", _png(encode_depth(out.depth)))
     atomic_write_bytes(training / "instance_2" / f"{fid}.png", _png(out.instance))
@@ -120,13 +116,8 @@ def make_frame(job: Job) -> str:
     write_plane(training / "planes" / f"{fid}.txt", rig.road_plane_rect())
     write_label(training / "label_2" / f"{fid}.txt", objects)
     meta = meta_io.world_to_meta(world, spec_to_dict(job.spec), truths, counts, lidar_info)
-    atomic_write_text(meta_path, meta_io.dumps(meta))
+    atomic_write_text(meta_path, dump_json(meta))
     return fid
-
-
-def _init_worker(threads: int) -> None:
-    """Give each worker's software rasteriser its share of the cores (read at GL start-up)."""
-    os.environ.setdefault("LP_NUM_THREADS", str(threads))
 
 
 def split_ids(n: int, train_fraction: float, seed: int) -> tuple[list[str], list[str]]:
@@ -146,33 +137,21 @@ def _check_manifest(root: Path, manifest: dict) -> None:
             raise ValueError(f"{path}: {root} holds a dataset made with a different {', '.join(diff)};"
                              " use a new --out directory")
     else:
-        atomic_write_text(path, json.dumps(manifest, sort_keys=True, indent=1) + "\n")
+        atomic_write_text(path, dump_json(manifest))
 
 
 def generate(spec: SceneSpec, out: str | Path, frames: int | None = None, seed: int | None = None,
-             workers: int = 2, lidar: LidarSection | None = None, progress: bool = True) -> list[str]:
-    """Write (or finish writing) the dataset; returns the frame ids. lidar overrides spec.lidar."""
+             backend: Backend | None = None) -> list[str]:
+    """Write (or finish writing) the dataset, one job per frame on `backend`; returns the ids."""
     root = Path(out)
     n = spec.frames if frames is None else frames
     seed = spec.seed if seed is None else seed
-    lidar = lidar if lidar is not None else spec.lidar
-    if lidar is not None:
+    if spec.lidar is not None:
         _lidar_api()  # fail before any work if the LiDAR code is missing
     _check_manifest(root, {"spec": spec_to_dict(spec), "seed": seed,
-                           "lidar": None if lidar is None else lidar.model_dump()})
-    jobs = [Job(spec, seed, i, root, lidar) for i in range(n)]
-    bar = tqdm(total=n, desc=f"generate {spec.name}", unit="frame", disable=not progress)
-    if workers <= 1:
-        for j in jobs:
-            make_frame(j)
-            bar.update()
-    else:
-        threads = max(1, (os.cpu_count() or 1) // workers)
-        with ProcessPoolExecutor(max_workers=workers, mp_context=get_context("spawn"),
-                                 initializer=_init_worker, initargs=(threads,)) as pool:
-            for _ in pool.map(make_frame, jobs):
-                bar.update()
-    bar.close()
+                           "lidar": None if spec.lidar is None else spec.lidar.model_dump()})
+    jobs = [Job(spec, seed, i, root) for i in range(n)]
+    (backend or InProcess()).map(make_frame, jobs, desc=f"generate {spec.name}")
     train, val = split_ids(n, spec.split.train_fraction, seed)
     sets = root / "ImageSets"
     write_split(sets / "train.txt", train)

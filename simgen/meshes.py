@@ -12,7 +12,8 @@ import numpy as np
 import trimesh
 from scipy.spatial import ConvexHull
 
-from .world import Material, Part
+from .usermesh import build_user_parts
+from .world import Material, Part, fit_parts
 
 # KITTI training-set label statistics (mean, sd) of h, w, l in metres; Bus (absent from KITTI)
 # from common city-bus dimensions.
@@ -257,23 +258,11 @@ _BUILDERS = {"car": _car, "van": _van, "truck": _truck, "bus": _bus,
              "pedestrian": _pedestrian, "cyclist": _cyclist}
 
 
-def fit_parts(parts: list[Part], h: float, w: float, l: float) -> list[Part]:
-    """Scale and shift parts so their joint extent is exactly l x w x h, origin at the bottom centre."""
-    allv = np.concatenate([p.mesh.vertices for p in parts])
-    lo, hi = allv.min(axis=0), allv.max(axis=0)
-    scale = np.array([l, w, h]) / (hi - lo)
-    shift = np.array([l / 2, w / 2, 0.0])
-    return [Part(trimesh.Trimesh((np.asarray(p.mesh.vertices) - lo) * scale - shift,
-                                 np.asarray(p.mesh.faces), process=False), p.material)
-            for p in parts]
-
-
 def build_actor_parts(recipe: dict) -> list[Part]:
     """The parts of a procedural (or user) actor, in its own frame; a pure function of the recipe."""
     kind = recipe["kind"]
     h, w, l = recipe["dims"]
     if kind == "user":
-        from .usermesh import build_user_parts
         return build_user_parts(recipe)
     if kind not in _BUILDERS:
         raise ValueError(f"unknown mesh kind {kind!r}")

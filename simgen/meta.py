@@ -7,9 +7,7 @@ and seed, or a user mesh's path), the static world from its scenery parameters.
 
 from __future__ import annotations
 
-import json
 from dataclasses import asdict
-from pathlib import Path
 
 import numpy as np
 
@@ -75,16 +73,3 @@ def world_from_meta(meta: dict) -> World:
                  rig=_rig_from_json(meta["rig"]), light=Light(**meta["light"]),
                  sensor=meta["sensor"], scenery=meta["scenery"], seed=meta["seed"],
                  frame_index=meta["frame_index"])
-
-
-def dumps(meta: dict) -> str:
-    """Canonical text: sorted keys, so one world always gives the same bytes."""
-    return json.dumps(meta, sort_keys=True, indent=1) + "\n"
-
-
-def read_meta(path: str | Path) -> dict:
-    path = Path(path)
-    try:
-        return json.loads(path.read_text())
-    except json.JSONDecodeError as e:
-        raise ValueError(f"{path}: line {e.lineno}: not valid JSON: {e.msg}") from None

@@ -114,69 +114,82 @@ def _make_rig(spec: SceneSpec, v: dict, road: RoadLayout, actors: list[Actor]) -
                      float(v["rig.focal_px"]), rs.image_width, rs.image_height)
 
 
-def sample_world(spec: SceneSpec, seed: int, frame_index: int) -> World:
-    """The world of one frame: a pure function of the spec, the seed and the frame index."""
-    v = _values(spec, seed, frame_index)
-    rig_spec = spec.rig
-    road = _road_layout(spec, v)
-    lanes = road.lanes
-    tr_max = float(v["traffic.max_distance"])
+def _scenery_params(spec: SceneSpec, v: dict, road: RoadLayout, seed: int, frame_index: int) -> dict:
+    """The static world's parameters: kept in `World.scenery` so meta/ can rebuild it exactly."""
     scenery = {"road": road.to_dict(),
                "clutter": {k.split(".", 1)[1]: v[k] for k in v if k.startswith("clutter.")},
                "seed": int(factor_rng(seed, frame_index, "scenery").integers(2**31))}
-    if rig_spec.type == "orbit":  # nothing static between the orbit camera and its target
+    if spec.rig.type == "orbit":  # nothing static between the orbit camera and its target
         e, a = np.radians(float(v["rig.elevation_deg"])), np.radians(float(v["rig.azimuth_deg"]))
         reach = float(v["rig.distance"]) * np.cos(e) + 3.0
         sight = shapely.LineString([(0.0, 0.0), (reach * np.cos(a), reach * np.sin(a))]).buffer(3.0)
         scenery["keep_clear"] = [list(c) for c in sight.exterior.coords]
-    static, obstacles = build_scenery(scenery)
-    rng = factor_rng(seed, frame_index, "actors")
-    speed = float(v["traffic.speed"])
-    sd_yaw = np.radians(float(v["traffic.heading_sd_deg"]))
-    sd_lat = float(v["traffic.lateral_sd"])
-    actors: list[Actor] = []
+    return scenery
 
-    reserved: list[shapely.Polygon] = []
-    if rig_spec.type == "onboard":
-        reserved.append(EGO_FOOTPRINT)
-    elif rig_spec.type == "orbit":
-        recipe = _recipe(rig_spec.target_class, spec, rng)
-        actors.append(Actor(1, rig_spec.target_class, build_actor_parts(recipe), np.eye(4),
-                            recipe=recipe))
-        h, w, l = recipe["dims"]
-        reserved.append(_footprint(np.eye(4), l, w))
-    placer = _Placer(obstacles, reserved)
 
-    def add(cls, recipe, pose, vel=0.0, yaw_rate=0.0):
-        if not placer.try_place(pose, recipe):
+class _Traffic:
+    """Places one frame's actors step by step; every step draws from the one `actors` stream, so
+    the steps' order (and the draws' order within each) is part of the seed's meaning."""
+
+    def __init__(self, spec: SceneSpec, v: dict, road: RoadLayout, obstacles: list[Obstacle],
+                 rng: np.random.Generator):
+        self.spec, self.road, self.rng = spec, road, rng
+        self.speed = float(v["traffic.speed"])
+        self.sd_yaw = np.radians(float(v["traffic.heading_sd_deg"]))
+        self.sd_lat = float(v["traffic.lateral_sd"])
+        self.s_lo = max(road.s_min, -spec.road.length_behind)
+        self.s_hi = min(road.s_max, float(v["traffic.max_distance"]))
+        self.directions = [False, True] if spec.traffic.oncoming else [False]
+        self.actors: list[Actor] = []
+        self.placer = _Placer(obstacles, self._reserved())
+
+    def _reserved(self) -> list[shapely.Polygon]:
+        """Footprints no actor may take: the ego vehicle's, or the orbit target's (actor 1)."""
+        rig_spec = self.spec.rig
+        if rig_spec.type == "onboard":
+            return [EGO_FOOTPRINT]
+        if rig_spec.type == "orbit":
+            recipe = _recipe(rig_spec.target_class, self.spec, self.rng)
+            self.actors.append(Actor(1, rig_spec.target_class, build_actor_parts(recipe), np.eye(4),
+                                     recipe=recipe))
+            _, w, l = recipe["dims"]
+            return [_footprint(np.eye(4), l, w)]
+        return []
+
+    def add(self, cls: str, recipe: dict, pose: np.ndarray, vel: float = 0.0,
+            yaw_rate: float = 0.0) -> None:
+        """Adds the actor unless its footprint collides; ids stay consecutive."""
+        if not self.placer.try_place(pose, recipe):
             return
         heading = pose[:3, 0]
-        actors.append(Actor(len(actors) + 1, cls, build_actor_parts(recipe), pose,
-                            velocity=vel * heading, yaw_rate=yaw_rate, recipe=recipe))
+        self.actors.append(Actor(len(self.actors) + 1, cls, build_actor_parts(recipe), pose,
+                                 velocity=vel * heading, yaw_rate=yaw_rate, recipe=recipe))
 
-    s_lo = max(road.s_min, -spec.road.length_behind)
-    s_hi = min(road.s_max, tr_max)
-    mix = spec.traffic.mix
-    # Moving traffic, lane by lane; gaps exponential with the spec's mean density.
-    dens = float(v["traffic.vehicles_per_100m"])
-    directions = [False, True] if spec.traffic.oncoming else [False]
-    if mix and dens > 0:
-        for oncoming in directions:
-            for lane in range(lanes):
-                s = s_lo + rng.exponential(100.0 / dens)
-                while s < s_hi:
+    def moving(self, dens: float) -> None:
+        """Moving traffic, lane by lane; gaps exponential with the spec's mean density."""
+        road, rng, mix = self.road, self.rng, self.spec.traffic.mix
+        if not (mix and dens > 0):
+            return
+        for oncoming in self.directions:
+            for lane in range(road.lanes):
+                s = self.s_lo + rng.exponential(100.0 / dens)
+                while s < self.s_hi:
                     cls = _pick_class(mix, rng)
-                    recipe = _recipe(cls, spec, rng)
-                    d = road.lane_centre(lane, oncoming) + float(np.clip(rng.normal(0, sd_lat), -0.4, 0.4))
-                    yaw = (np.pi if oncoming else 0.0) + rng.normal(0, sd_yaw)
-                    vel = speed * rng.uniform(0.8, 1.2)
-                    add(cls, recipe, road.pose(s, d, 0.0, yaw), vel,
-                        (-1.0 if oncoming else 1.0) * vel * road.curvature)
+                    recipe = _recipe(cls, self.spec, rng)
+                    d = road.lane_centre(lane, oncoming) + float(
+                        np.clip(rng.normal(0, self.sd_lat), -0.4, 0.4))
+                    yaw = (np.pi if oncoming else 0.0) + rng.normal(0, self.sd_yaw)
+                    vel = self.speed * rng.uniform(0.8, 1.2)
+                    self.add(cls, recipe, road.pose(s, d, 0.0, yaw), vel,
+                             (-1.0 if oncoming else 1.0) * vel * road.curvature)
                     s += recipe["dims"][2] + 2.0 + rng.exponential(100.0 / dens)
-    # Traffic on the cross street, both ways, right-hand; lane i of the +y direction at
-    # x = cross_s + (i + 0.5) w.
-    dens = float(v["traffic.vehicles_per_100m"])
-    if road.cross_s is not None and mix and dens > 0:
+
+    def crossing(self, dens: float) -> None:
+        """Traffic on the cross street, both ways, right-hand; lane i of the +y direction at
+        x = cross_s + (i + 0.5) w."""
+        road, rng, mix = self.road, self.rng, self.spec.traffic.mix
+        if not (road.cross_s is not None and mix and dens > 0):
+            return
         reach = VERGE_REACH
         for sign in (1.0, -1.0):
             for lane in range(road.cross_lanes):
@@ -184,52 +197,79 @@ def sample_world(spec: SceneSpec, seed: int, frame_index: int) -> World:
                 y = -reach + rng.exponential(100.0 / dens)
                 while y < reach:
                     cls = _pick_class(mix, rng)
-                    recipe = _recipe(cls, spec, rng)
-                    yaw = sign * np.pi / 2 + rng.normal(0, sd_yaw)
+                    recipe = _recipe(cls, self.spec, rng)
+                    yaw = sign * np.pi / 2 + rng.normal(0, self.sd_yaw)
                     T = np.eye(4)
                     T[:3, :3] = [[np.cos(yaw), -np.sin(yaw), 0], [np.sin(yaw), np.cos(yaw), 0], [0, 0, 1]]
-                    T[:3, 3] = [x + float(np.clip(rng.normal(0, sd_lat), -0.4, 0.4)), sign * y, 0.0]
-                    add(cls, recipe, T, speed * rng.uniform(0.8, 1.2))
+                    T[:3, 3] = [x + float(np.clip(rng.normal(0, self.sd_lat), -0.4, 0.4)), sign * y, 0.0]
+                    self.add(cls, recipe, T, self.speed * rng.uniform(0.8, 1.2))
                     y += recipe["dims"][2] + 2.0 + rng.exponential(100.0 / dens)
-    # Parked cars in the parking strips, nose along the traffic on their side.
-    dens = float(v["traffic.parked_per_100m"])
-    if dens > 0:
+
+    def parked(self, dens: float) -> None:
+        """Parked cars in the parking strips, nose along the traffic on their side."""
+        road, rng = self.road, self.rng
+        if not dens > 0:
+            return
         for side in (-1, 1):
-            s = s_lo + rng.exponential(100.0 / dens)
-            while s < s_hi:
+            s = self.s_lo + rng.exponential(100.0 / dens)
+            while s < self.s_hi:
                 cls = _pick_class({"Car": 0.85, "Van": 0.15}, rng)
-                recipe = _recipe(cls, spec, rng)
+                recipe = _recipe(cls, self.spec, rng)
                 if road.in_cross_street(s, recipe["dims"][2] / 2 + 3.0):  # keep the corners free
                     s += recipe["dims"][2] + 0.8 + rng.exponential(100.0 / dens)
                     continue
                 w = recipe["dims"][1]
                 d = (road.right_curb + w / 2 + 0.25) if side < 0 else (road.left_curb - w / 2 - 0.25)
-                yaw = (0.0 if side < 0 else np.pi) + rng.normal(0, sd_yaw)
-                add(cls, recipe, road.pose(s, d, 0.0, yaw))
+                yaw = (0.0 if side < 0 else np.pi) + rng.normal(0, self.sd_yaw)
+                self.add(cls, recipe, road.pose(s, d, 0.0, yaw))
                 s += recipe["dims"][2] + 0.8 + rng.exponential(100.0 / dens)
-    # Pedestrians on both sidewalks, walking either way.
-    dens = float(v["traffic.pedestrians_per_100m"])
-    for side in (-1, 1):
-        curb = road.right_curb if side < 0 else road.left_curb
-        for s in rng.uniform(s_lo, s_hi, rng.poisson(dens * (s_hi - s_lo) / 100.0)):
-            recipe = _recipe("Pedestrian", spec, rng)
-            d = curb + side * rng.uniform(0.4, max(0.5, road.sidewalk_width - 0.4))
-            if road.in_cross_street(s, 0.5):  # the sidewalk stops at the cross street
-                continue
-            yaw = rng.choice([0.0, np.pi]) + rng.normal(0, 0.4)
-            add("Pedestrian", recipe, road.pose(s, d, road.curb_height, yaw), rng.uniform(0.8, 1.6))
-    # Cyclists at the outer edge of the outermost lane of each direction.
-    dens = float(v["traffic.cyclists_per_100m"])
-    for oncoming in directions:
-        for s in rng.uniform(s_lo, s_hi, rng.poisson(dens * (s_hi - s_lo) / 100.0)):
-            recipe = _recipe("Cyclist", spec, rng)
-            edge = road.left_lane_edge if oncoming else road.right_lane_edge
-            d = edge + (-0.7 if oncoming else 0.7)
-            yaw = (np.pi if oncoming else 0.0) + rng.normal(0, sd_yaw)
-            vel = rng.uniform(3.0, 7.0)
-            add("Cyclist", recipe, road.pose(s, d, 0.0, yaw), vel,
-                (-1.0 if oncoming else 1.0) * vel * road.curvature)
 
+    def pedestrians(self, dens: float) -> None:
+        """Pedestrians on both sidewalks, walking either way."""
+        road, rng, s_lo, s_hi = self.road, self.rng, self.s_lo, self.s_hi
+        for side in (-1, 1):
+            curb = road.right_curb if side < 0 else road.left_curb
+            for s in rng.uniform(s_lo, s_hi, rng.poisson(dens * (s_hi - s_lo) / 100.0)):
+                recipe = _recipe("Pedestrian", self.spec, rng)
+                d = curb + side * rng.uniform(0.4, max(0.5, road.sidewalk_width - 0.4))
+                if road.in_cross_street(s, 0.5):  # the sidewalk stops at the cross street
+                    continue
+                yaw = rng.choice([0.0, np.pi]) + rng.normal(0, 0.4)
+                self.add("Pedestrian", recipe, road.pose(s, d, road.curb_height, yaw), rng.uniform(0.8, 1.6))
+
+    def cyclists(self, dens: float) -> None:
+        """Cyclists at the outer edge of the outermost lane of each direction."""
+        road, rng, s_lo, s_hi = self.road, self.rng, self.s_lo, self.s_hi
+        for oncoming in self.directions:
+            for s in rng.uniform(s_lo, s_hi, rng.poisson(dens * (s_hi - s_lo) / 100.0)):
+                recipe = _recipe("Cyclist", self.spec, rng)
+                edge = road.left_lane_edge if oncoming else road.right_lane_edge
+                d = edge + (-0.7 if oncoming else 0.7)
+                yaw = (np.pi if oncoming else 0.0) + rng.normal(0, self.sd_yaw)
+                vel = rng.uniform(3.0, 7.0)
+                self.add("Cyclist", recipe, road.pose(s, d, 0.0, yaw), vel,
+                         (-1.0 if oncoming else 1.0) * vel * road.curvature)
+
+
+def _place_actors(spec: SceneSpec, v: dict, road: RoadLayout, obstacles: list[Obstacle],
+                  rng: np.random.Generator) -> list[Actor]:
+    """Every actor of the frame, in the fixed order that makes the seed reproducible."""
+    traffic = _Traffic(spec, v, road, obstacles, rng)
+    traffic.moving(float(v["traffic.vehicles_per_100m"]))
+    traffic.crossing(float(v["traffic.vehicles_per_100m"]))
+    traffic.parked(float(v["traffic.parked_per_100m"]))
+    traffic.pedestrians(float(v["traffic.pedestrians_per_100m"]))
+    traffic.cyclists(float(v["traffic.cyclists_per_100m"]))
+    return traffic.actors
+
+
+def sample_world(spec: SceneSpec, seed: int, frame_index: int) -> World:
+    """The world of one frame: a pure function of the spec, the seed and the frame index."""
+    v = _values(spec, seed, frame_index)
+    road = _road_layout(spec, v)
+    scenery = _scenery_params(spec, v, road, seed, frame_index)
+    static, obstacles = build_scenery(scenery)
+    actors = _place_actors(spec, v, road, obstacles, factor_rng(seed, frame_index, "actors"))
     rig = _make_rig(spec, v, road, actors)
     ego_velocity = np.array([float(v["rig.ego_speed"]), 0.0, 0.0]) if rig.kind == "onboard" else np.zeros(3)
     light = Light(v["light.time"], float(v["light.sun_intensity"]),
@@ -240,4 +280,3 @@ def sample_world(spec: SceneSpec, seed: int, frame_index: int) -> World:
                  lidar_pose=rig.reference_pose.copy(), ego_velocity=ego_velocity, rig=rig,
                  light=light, sensor=str(v["sensor"]), scenery=scenery, seed=int(seed),
                  frame_index=int(frame_index))
-

@@ -118,6 +118,128 @@ def _cross_street(road: RoadLayout, add) -> shapely.Polygon:
     return shapely.box(cx - hw - sw - 1.0, -1e4, cx + hw + sw + 1.0, 1e4)
 
 
+class _Meshes:
+    """The scenery built so far: meshes by material, footprints, and the areas to keep clear."""
+
+    def __init__(self, clear: list[shapely.Polygon]):
+        self.by_mat: dict[Material, list[trimesh.Trimesh]] = {}
+        self.obstacles: list[Obstacle] = []
+        self.clear = clear
+
+    def add(self, mat: Material, mesh: trimesh.Trimesh) -> None:
+        self.by_mat.setdefault(mat, []).append(mesh)
+
+    def blocks(self, mesh: trimesh.Trimesh) -> bool:
+        """Whether the mesh would stand in a keep-clear area (a sight line, the cross street)."""
+        fp = _footprint(mesh)
+        return any(fp.intersects(c) for c in self.clear)
+
+
+def _ground(road: RoadLayout, ground: Material, out: _Meshes) -> None:
+    """Asphalt, the cross street, sidewalks, curb faces and the verges beyond them."""
+    out.add(ASPHALT, _strip(road, road.samples(road.s_min, road.s_max), road.right_curb, road.left_curb, 0.0))
+    if road.cross_s is not None:
+        out.clear.append(_cross_street(road, out.add))
+    ch, sw = road.curb_height, road.sidewalk_width
+    for side in (-1, 1):
+        curb = road.right_curb if side < 0 else road.left_curb
+        outer = curb + side * sw
+        lo, hi = sorted((curb, outer))
+        for s0, s1 in _spans(road, 0.0):
+            ss = road.samples(s0, s1)
+            out.add(SIDEWALK, _strip(road, ss, lo, hi, ch))
+            face = _strip(road, ss, curb, curb, 0.0, ch)
+            out.add(CONCRETE, face if side < 0 else _flip(face))
+        vlo, vhi = sorted((outer, outer + side * VERGE_WIDTH))
+        for s0, s1 in _spans(road, sw):
+            out.add(ground, _strip(road, road.samples(s0, s1), vlo, vhi, ch))
+
+
+def _markings(road: RoadLayout, out: _Meshes) -> None:
+    """Solid edge lines and divider, dashed lines between lanes of one direction."""
+    w = 0.15
+    spans = _spans(road, 0.0)
+    for s0, s1 in spans:
+        ss = road.samples(s0, s1)
+        for d in (road.right_lane_edge + 0.25, road.left_lane_edge - 0.25):
+            out.add(MARKING, _strip(road, ss, d - w / 2, d + w / 2, MARK_Z))
+        for off in (-0.12, 0.12):
+            out.add(MARKING, _strip(road, ss, road.divider + off - w / 2, road.divider + off + w / 2, MARK_Z))
+    dash, gap = 3.0, 9.0
+    starts = np.arange(np.floor(road.s_min / (dash + gap)) * (dash + gap), road.s_max, dash + gap)
+    for k in range(1, road.lanes):
+        for base in (road.right_lane_edge, road.left_lane_edge):
+            d = base + k * road.lane_width if base == road.right_lane_edge else base - k * road.lane_width
+            for s0 in starts:
+                for lo_s, hi_s in spans:
+                    ss = road.samples(max(s0, lo_s), min(s0 + dash, hi_s), 1.0)
+                    if ss[-1] > ss[0]:
+                        out.add(MARKING, _strip(road, ss, d - w / 2, d + w / 2, MARK_Z))
+
+
+def _buildings(road: RoadLayout, side: int, outer: float, setback: float, rng: np.random.Generator,
+               out: _Meshes) -> None:
+    """A row of boxes behind the sidewalk, gaps between some; one drawn but blocked is skipped."""
+    sb = road.s_min - 10.0
+    while sb < road.s_max + 10.0:
+        length = rng.uniform(8.0, 30.0)
+        depth, height = rng.uniform(8.0, 16.0), rng.uniform(5.0, 20.0)
+        d = outer + side * (setback + depth / 2)
+        m = _oriented_box(road, sb + length / 2, d, road.curb_height, length, depth, height)
+        sb += length + rng.choice([0.0, rng.uniform(2.0, 10.0)])
+        if out.blocks(m):
+            continue
+        out.add(Material("facade", _FACADES[int(rng.integers(len(_FACADES)))], 0.35), m)
+        out.obstacles.append(Obstacle(_footprint(m)))
+
+
+def _fences(road: RoadLayout, side: int, outer: float, out: _Meshes) -> None:
+    """A 1.2 m fence along the sidewalk's outer edge, broken by the cross street."""
+    ch = road.curb_height
+    for s0, s1 in _spans(road, road.sidewalk_width):
+        m = _strip(road, road.samples(s0, s1), outer - side * 0.3, outer - side * 0.3, ch, ch + 1.2)
+        out.add(FENCE, m if side < 0 else _flip(m))
+
+
+def _trees(road: RoadLayout, side: int, outer: float, per_100m: float, woods: float,
+           rng: np.random.Generator, out: _Meshes) -> None:
+    """Trees on the sidewalk and, in woods, behind it; a crown in a keep-clear area drops the tree."""
+    ch, sw = road.curb_height, road.sidewalk_width
+    n_trees = rng.poisson(per_100m * (road.s_max - road.s_min) / 100.0)
+    n_woods = rng.poisson(woods * (road.s_max - road.s_min) / 100.0)
+    sidewalk_d = outer - side * min(1.0, sw / 2)
+    spots = [(st, sidewalk_d) for st in np.sort(rng.uniform(road.s_min, road.s_max, n_trees))]
+    spots += [(st, outer + side * rng.uniform(3.0, 28.0))
+              for st in np.sort(rng.uniform(road.s_min, road.s_max, n_woods))]
+    for st, d in spots:
+        trunk_h, r = rng.uniform(2.0, 3.0), rng.uniform(1.0, 2.0)
+        x, y = road.xy(st, d)
+        trunk = trimesh.creation.cylinder(radius=0.15, height=trunk_h, sections=8)
+        trunk.apply_translation([x, y, ch + trunk_h / 2])
+        crown = trimesh.creation.icosphere(subdivisions=1, radius=r)
+        crown.apply_translation([x, y, ch + trunk_h + 0.8 * r])
+        if out.blocks(crown):
+            continue
+        out.add(BARK, trunk)
+        out.add(FOLIAGE, crown)
+        out.obstacles.append(Obstacle(_footprint(trunk).buffer(0.1)))
+        out.obstacles.append(Obstacle(_footprint(crown), base=ch + trunk_h))
+
+
+def _poles(road: RoadLayout, side: int, curb: float, spacing: float, rng: np.random.Generator,
+           out: _Meshes) -> None:
+    """7 m poles half a metre behind the curb, evenly spaced from a random start."""
+    ch = road.curb_height
+    for sp in np.arange(road.s_min + rng.uniform(0, spacing), road.s_max, spacing):
+        x, y = road.xy(sp, curb + side * 0.5)
+        pole = trimesh.creation.cylinder(radius=0.09, height=7.0, sections=8)
+        pole.apply_translation([x, y, ch + 3.5])
+        if out.blocks(pole):
+            continue
+        out.add(METAL, pole)
+        out.obstacles.append(Obstacle(_footprint(pole).buffer(0.1)))
+
+
 def build_scenery(params: dict) -> tuple[list[Part], list[Obstacle]]:
     """Static parts (world frame) and their footprints, from the scenery parameters.
 
@@ -128,101 +250,19 @@ def build_scenery(params: dict) -> tuple[list[Part], list[Obstacle]]:
     clutter = params["clutter"]
     ground, buildings, tree_factor, woods = ENVIRONMENTS[clutter.get("environment", "city")]
     rng = np.random.default_rng(params["seed"])
-    s = road.samples(road.s_min, road.s_max)
-    by_mat: dict[Material, list[trimesh.Trimesh]] = {}
-    obstacles: list[Obstacle] = []
-    clear = [shapely.Polygon(params["keep_clear"])] if params.get("keep_clear") else []
-
-    def add(mat, mesh):
-        by_mat.setdefault(mat, []).append(mesh)
-
-    def blocks(mesh) -> bool:
-        fp = _footprint(mesh)
-        return any(fp.intersects(c) for c in clear)
-
-    add(ASPHALT, _strip(road, s, road.right_curb, road.left_curb, 0.0))
-    if road.cross_s is not None:
-        clear.append(_cross_street(road, add))
-    ch, sw = road.curb_height, road.sidewalk_width
+    out = _Meshes([shapely.Polygon(params["keep_clear"])] if params.get("keep_clear") else [])
+    _ground(road, ground, out)
+    _markings(road, out)
+    # Buildings, trees, poles and fences along both sides: one side's draws, then the other's.
     for side in (-1, 1):
         curb = road.right_curb if side < 0 else road.left_curb
-        outer = curb + side * sw
-        lo, hi = sorted((curb, outer))
-        for s0, s1 in _spans(road, 0.0):
-            ss = road.samples(s0, s1)
-            add(SIDEWALK, _strip(road, ss, lo, hi, ch))
-            face = _strip(road, ss, curb, curb, 0.0, ch)
-            add(CONCRETE, face if side < 0 else _flip(face))
-        vlo, vhi = sorted((outer, outer + side * VERGE_WIDTH))
-        for s0, s1 in _spans(road, sw):
-            add(ground, _strip(road, road.samples(s0, s1), vlo, vhi, ch))
-    # Markings: solid edge lines and divider, dashed lines between lanes of one direction.
-    w = 0.15
-    spans = _spans(road, 0.0)
-    for s0, s1 in spans:
-        ss = road.samples(s0, s1)
-        for d in (road.right_lane_edge + 0.25, road.left_lane_edge - 0.25):
-            add(MARKING, _strip(road, ss, d - w / 2, d + w / 2, MARK_Z))
-        for off in (-0.12, 0.12):
-            add(MARKING, _strip(road, ss, road.divider + off - w / 2, road.divider + off + w / 2, MARK_Z))
-    dash, gap = 3.0, 9.0
-    starts = np.arange(np.floor(road.s_min / (dash + gap)) * (dash + gap), road.s_max, dash + gap)
-    for k in range(1, road.lanes):
-        for base in (road.right_lane_edge, road.left_lane_edge):
-            d = base + k * road.lane_width if base == road.right_lane_edge else base - k * road.lane_width
-            for s0 in starts:
-                for lo_s, hi_s in spans:
-                    ss = road.samples(max(s0, lo_s), min(s0 + dash, hi_s), 1.0)
-                    if ss[-1] > ss[0]:
-                        add(MARKING, _strip(road, ss, d - w / 2, d + w / 2, MARK_Z))
-    # Buildings, trees, poles and fences along both sides.
-    for side in (-1, 1):
-        curb = road.right_curb if side < 0 else road.left_curb
-        outer = curb + side * sw
+        outer = curb + side * road.sidewalk_width
         if clutter["buildings"] and buildings:
-            sb = road.s_min - 10.0
-            while sb < road.s_max + 10.0:
-                length = rng.uniform(8.0, 30.0)
-                depth, height = rng.uniform(8.0, 16.0), rng.uniform(5.0, 20.0)
-                d = outer + side * (clutter["building_setback"] + depth / 2)
-                m = _oriented_box(road, sb + length / 2, d, ch, length, depth, height)
-                sb += length + rng.choice([0.0, rng.uniform(2.0, 10.0)])
-                if blocks(m):
-                    continue
-                add(Material("facade", _FACADES[int(rng.integers(len(_FACADES)))], 0.35), m)
-                obstacles.append(Obstacle(_footprint(m)))
+            _buildings(road, side, outer, clutter["building_setback"], rng, out)
         elif clutter["fences"]:  # where no buildings line the sidewalk
-            for s0, s1 in _spans(road, sw):
-                m = _strip(road, road.samples(s0, s1), outer - side * 0.3, outer - side * 0.3, ch, ch + 1.2)
-                add(FENCE, m if side < 0 else _flip(m))
-        n_trees = rng.poisson(tree_factor * clutter["trees_per_100m"] * (road.s_max - road.s_min) / 100.0)
-        n_woods = rng.poisson(woods * (road.s_max - road.s_min) / 100.0)
-        sidewalk_d = outer - side * min(1.0, sw / 2)
-        spots = [(st, sidewalk_d) for st in np.sort(rng.uniform(road.s_min, road.s_max, n_trees))]
-        spots += [(st, outer + side * rng.uniform(3.0, 28.0))
-                  for st in np.sort(rng.uniform(road.s_min, road.s_max, n_woods))]
-        for st, d in spots:
-            trunk_h, r = rng.uniform(2.0, 3.0), rng.uniform(1.0, 2.0)
-            x, y = road.xy(st, d)
-            trunk = trimesh.creation.cylinder(radius=0.15, height=trunk_h, sections=8)
-            trunk.apply_translation([x, y, ch + trunk_h / 2])
-            crown = trimesh.creation.icosphere(subdivisions=1, radius=r)
-            crown.apply_translation([x, y, ch + trunk_h + 0.8 * r])
-            if blocks(crown):
-                continue
-            add(BARK, trunk)
-            add(FOLIAGE, crown)
-            obstacles.append(Obstacle(_footprint(trunk).buffer(0.1)))
-            obstacles.append(Obstacle(_footprint(crown), base=ch + trunk_h))
-        spacing = clutter["pole_spacing"]
-        if spacing > 0:
-            for sp in np.arange(road.s_min + rng.uniform(0, spacing), road.s_max, spacing):
-                x, y = road.xy(sp, curb + side * 0.5)
-                pole = trimesh.creation.cylinder(radius=0.09, height=7.0, sections=8)
-                pole.apply_translation([x, y, ch + 3.5])
-                if blocks(pole):
-                    continue
-                add(METAL, pole)
-                obstacles.append(Obstacle(_footprint(pole).buffer(0.1)))
-    parts = [Part(trimesh.util.concatenate(ms), mat) for mat, ms in by_mat.items()]
-    return parts, obstacles
+            _fences(road, side, outer, out)
+        _trees(road, side, outer, tree_factor * clutter["trees_per_100m"], woods, rng, out)
+        if clutter["pole_spacing"] > 0:
+            _poles(road, side, curb, clutter["pole_spacing"], rng, out)
+    parts = [Part(trimesh.util.concatenate(ms), mat) for mat, ms in out.by_mat.items()]
+    return parts, out.obstacles

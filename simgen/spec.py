@@ -15,7 +15,6 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 from .factors import factor
 
 VEHICLE_CLASSES = ("Car", "Van", "Truck", "Bus")
-ACTOR_CLASSES = ("Car", "Van", "Truck", "Bus", "Pedestrian", "Cyclist", "Tram", "Misc")
 
 
 class SpecError(ValueError):

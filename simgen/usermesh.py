@@ -13,8 +13,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from .meshes import fit_parts
-from .world import Material, Part
+from .world import Material, Part, fit_parts
 
 # y-up files (x right, y up, z towards the viewer) to x forward, y left, z up: the model's
 # front is taken to be +x in the file as well, so only the vertical axis moves.

@@ -131,3 +131,14 @@ class World:
             if a.id == actor_id:
                 return a
         raise KeyError(f"no actor with id {actor_id}")
+
+
+def fit_parts(parts: list[Part], h: float, w: float, l: float) -> list[Part]:
+    """Scale and shift parts so their joint extent is exactly l x w x h, origin at the bottom centre."""
+    allv = np.concatenate([p.mesh.vertices for p in parts])
+    lo, hi = allv.min(axis=0), allv.max(axis=0)
+    scale = np.array([l, w, h]) / (hi - lo)
+    shift = np.array([l / 2, w / 2, 0.0])
+    return [Part(trimesh.Trimesh((np.asarray(p.mesh.vertices) - lo) * scale - shift,
+                                 np.asarray(p.mesh.faces), process=False), p.material)
+            for p in parts]

@@ -1,35 +1,62 @@
 """Execution backends: the same independent jobs on a local process pool or on Ray.
 
 A job is a picklable top-level function and one argument; results come back in job order, so both
-backends write identical files whatever order the jobs finish in.
+backends write identical files whatever order the jobs finish in. A run opens one backend and
+every stage maps its per-frame jobs on it (`kitti.jobs.Backend`): one pool per run, none nested.
 """
 
 from __future__ import annotations
 
 import multiprocessing as mp
+import os
 from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Callable, Sequence
 
 from tqdm import tqdm
 
 
+def _render_threads(workers: int) -> str:
+    """Each worker's share of the cores for Mesa's software rasteriser (read at GL start-up)."""
+    return str(max(1, (os.cpu_count() or 1) // max(1, workers)))
+
+
+def _init_worker(threads: str) -> None:
+    os.environ.setdefault("LP_NUM_THREADS", threads)
+
+
 @dataclass
 class LocalBackend:
-    """A pool of `workers` processes (spawned: no EGL or torch state crosses a fork); 1 = in-process."""
+    """A pool of `workers` processes (spawned: no EGL or torch state crosses a fork), started at
+    the first map and reused by every later one until `close`; 1 = in this process."""
 
     workers: int = 1
+    _pool: ProcessPoolExecutor | None = field(default=None, init=False, repr=False)
 
     def map(self, fn: Callable[[Any], Any], jobs: Sequence[Any], desc: str = "jobs") -> list[Any]:
         jobs = list(jobs)
         if self.workers <= 1 or len(jobs) <= 1:
             return [fn(j) for j in tqdm(jobs, desc=desc, unit="job")]
+        if self._pool is None:
+            self._pool = ProcessPoolExecutor(self.workers, mp_context=mp.get_context("spawn"),
+                                             initializer=_init_worker,
+                                             initargs=(_render_threads(self.workers),))
         results: list[Any] = [None] * len(jobs)
-        with ProcessPoolExecutor(self.workers, mp_context=mp.get_context("spawn")) as pool:
-            futures = {pool.submit(fn, j): i for i, j in enumerate(jobs)}
-            for fut in tqdm(as_completed(futures), total=len(jobs), desc=desc, unit="job"):
-                results[futures[fut]] = fut.result()
+        futures = {self._pool.submit(fn, j): i for i, j in enumerate(jobs)}
+        for fut in tqdm(as_completed(futures), total=len(jobs), desc=desc, unit="job"):
+            results[futures[fut]] = fut.result()
         return results
+
+    def close(self) -> None:
+        if self._pool is not None:
+            self._pool.shutdown(cancel_futures=True)
+            self._pool = None
+
+    def __enter__(self) -> LocalBackend:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
 
 
 @dataclass
@@ -44,12 +71,14 @@ class RayBackend:
             import ray
         except ImportError as e:  # ray is the optional extra `.[ray]`
             raise RuntimeError("the Ray backend needs `pip install -e .[ray]`") from e
-        if not ray.is_initialized():
+        self._started = not ray.is_initialized()
+        if self._started:
             kwargs: dict[str, Any] = dict(include_dashboard=False, log_to_driver=False,
                                           configure_logging=False)
             if self.address:
                 ray.init(address=self.address, **kwargs)
-            else:
+            else:  # the local workers inherit this process's environment
+                os.environ.setdefault("LP_NUM_THREADS", _render_threads(self.workers or 1))
                 ray.init(num_cpus=self.workers, _node_ip_address="127.0.0.1", **kwargs)
         self._ray = ray
 
@@ -67,6 +96,17 @@ class RayBackend:
                     results[index[ref]] = ray.get(ref)
                     bar.update(1)
         return results
+
+    def close(self) -> None:
+        """Shut down the Ray instance this backend started (a cluster it joined lives on)."""
+        if self._started:
+            self._ray.shutdown()
+
+    def __enter__(self) -> RayBackend:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
 
 
 Backend = LocalBackend | RayBackend

@@ -1,39 +1,40 @@
-"""`testbed`: one command, one subcommand per stage of the pipeline."""
+"""`testbed`: one command, one subcommand per stage of the pipeline.
+
+Each subcommand is a thin adapter in its own `cmd_*` module (parse options, call one library
+function, print). The group imports a module only when its command is asked for, and the modules
+import their stage's heavy dependencies (torch, Embree, pyrender) only when the stage runs, so
+`testbed --help` is instant and `testbed reduce-beams` on real KITTI never loads the simulator.
+"""
 
 from __future__ import annotations
 
+import importlib
+
 import click
 
-from .cmd_evaluate import evaluate
-from .cmd_detect import detect
-from .cmd_train_detector import train_detector
-from .cmd_generate import generate
-from .cmd_lift import lift
-from .cmd_train_lifter import train_lifter
-from .cmd_show import show
-from .cmd_rescan import rescan
-from .cmd_reduce_beams import reduce_beams
-from .cmd_run import run
-from .cmd_sweep import sweep
+COMMANDS = {  # name -> module defining a click command of the same name (dashes as underscores)
+    "generate": "cmd_generate", "rescan": "cmd_rescan", "reduce-beams": "cmd_reduce_beams",
+    "detect": "cmd_detect", "train-detector": "cmd_train_detector", "lift": "cmd_lift",
+    "train-lifter": "cmd_train_lifter", "evaluate": "cmd_evaluate", "run": "cmd_run",
+    "sweep": "cmd_sweep", "show": "cmd_show",
+}
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+class LazyGroup(click.Group):
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        return sorted(COMMANDS)
+
+    def get_command(self, ctx: click.Context, name: str) -> click.Command | None:
+        if name not in COMMANDS:
+            return None
+        module = importlib.import_module(f"testbed.{COMMANDS[name]}")
+        return getattr(module, name.replace("-", "_"))
+
+
+@click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
 def cli() -> None:
     """Synthetic road scenes with exact 3D truth, a 2D detector, a 2D-to-3D lifter and the
     KITTI evaluation, swept over LiDAR beams, range and weather."""
-
-
-cli.add_command(evaluate)
-cli.add_command(detect)
-cli.add_command(train_detector)
-cli.add_command(generate)
-cli.add_command(lift)
-cli.add_command(train_lifter)
-cli.add_command(show)
-cli.add_command(rescan)
-cli.add_command(reduce_beams)
-cli.add_command(run)
-cli.add_command(sweep)
 
 
 def main() -> None:

@@ -7,10 +7,6 @@ from pathlib import Path
 
 import click
 
-from kitti.errors import KittiFormatError
-from kitti.io import atomic_write_text
-from kitti.splits import read_split
-
 
 def _floats(ctx, param, value: str | None) -> list[float] | None:
     if value is None:
@@ -47,19 +43,15 @@ def evaluate(gt_dir: Path, pred_dir: Path, split: Path | None, json_out: Path | 
     """Evaluate detections in PRED against truth in GT: 2D, bird's-eye, 3D and AOS, AP|R11 and
     AP|R40, easy/moderate/hard, exactly as the KITTI devkit; plus AP per distance bin,
     matched-pair errors and the volumetric metrics."""
-    from kitti.eval import evaluate as run_eval
-    from kitti.eval import load_annotations
+    from kitti.eval import evaluate_folders
+    from kitti.io import atomic_write_text
 
     try:
-        ids = read_split(split) if split else None
-        gt = load_annotations(gt_dir, ids, progress=True)
-        if not gt:
-            raise click.UsageError(f"no label files in {gt_dir}")
-        dt = load_annotations(pred_dir, list(gt), missing_ok=True, progress=True)
-        res = run_eval(gt, dt, classes=[c.strip() for c in classes.split(",") if c.strip()],
-                       range_bins=range_bins, progress=True, match_iou=match_iou,
-                       min_score=min_score, max_distance=max_distance)
-    except (KittiFormatError, ValueError) as e:
+        res = evaluate_folders(gt_dir, pred_dir, split,
+                               classes=[c.strip() for c in classes.split(",") if c.strip()],
+                               range_bins=range_bins, match_iou=match_iou, min_score=min_score,
+                               max_distance=max_distance)
+    except ValueError as e:
         raise click.ClickException(str(e)) from None
     click.echo(res.table(), nl=False)
     if json_out:

@@ -22,8 +22,10 @@ import click
 def generate(spec_path: Path, out: Path, frames: int | None, seed: int | None, workers: int,
              lidar_preset: str | None, beams: int | None, max_range: float | None) -> None:
     """Render, label and write the frames of SPEC (scenes/*.yaml) under --out."""
-    from simgen.generate import generate as run
+    from simgen.generate import generate as write_dataset
     from simgen.spec import LidarSection, SpecError, load_spec
+
+    from .backends import LocalBackend
 
     try:
         spec = load_spec(spec_path)
@@ -39,7 +41,8 @@ def generate(spec_path: Path, out: Path, frames: int | None, seed: int | None, w
     elif lidar_preset is not None:
         spec = spec.model_copy(update={"lidar": None})
     try:
-        ids = run(spec, out, frames=frames, seed=seed, workers=workers)
+        with LocalBackend(workers) as backend:
+            ids = write_dataset(spec, out, frames=frames, seed=seed, backend=backend)
     except (ValueError, RuntimeError) as e:
         raise click.ClickException(str(e)) from None
     click.echo(f"{len(ids)} frames in {out}")

@@ -6,6 +6,8 @@ from pathlib import Path
 
 import click
 
+from lifter.methods import METHODS
+
 
 @click.command()
 @click.option("--data", required=True, type=click.Path(exists=True, file_okay=False, path_type=Path),
@@ -13,7 +15,8 @@ import click
 @click.option("--boxes", required=True,
               help="'gt' (the label_2 boxes of the road users, oracle) or a folder of "
                    "detection result files (testbed detect).")
-@click.option("--method", required=True, type=click.Choice(["frustum", "fit", "mono", "roadside"]))
+@click.option("--method", required=True, type=click.Choice(list(METHODS)),
+              help="; ".join(f"{m.name}: {m.summary}" for m in METHODS.values()))
 @click.option("--split", default=None, help="ImageSets/<split>.txt [default: every frame].")
 @click.option("--out", required=True, type=click.Path(file_okay=False, path_type=Path),
               help="Folder for the result files (<id>.txt).")
@@ -28,7 +31,8 @@ def lift(data: Path, boxes: str, method: str, split: str | None, out: Path, prio
     from lifter.pipeline import lift_dataset
 
     try:
-        n = lift_dataset(data, boxes, method, out, split, priors=priors, weights=weights)
+        detections = None if boxes == "gt" else Path(boxes)
+        n = lift_dataset(data, detections, method, out, split, priors=priors, weights=weights)
     except (KittiFormatError, ValueError, FileNotFoundError) as e:
         raise click.ClickException(str(e)) from None
     click.echo(f"{n} 3D boxes written to {out}")

@@ -24,20 +24,15 @@ def reduce_beams(dataset: Path, beams: int, out: Path, source_beams: int | None,
                  workers: int) -> None:
     """Keep rings 0, k, 2k, ... of every scan: rings from velodyne_info/ where present, else
     recovered from the KITTI point order (azimuth wraps) or elevation clustering."""
-    from simgen.lidar.dataset import (PARTS, ReduceJob, check_reduction, claim_output,
-                                      mirror_dataset, reduce_frame, reduce_ids)
-    from testbed.backends import LocalBackend
+    from kitti.reduce import reduce_beams as reduce_dataset
+
+    from .backends import LocalBackend
+    from .stages import sensor_beams
 
     try:
-        jobs = [ReduceJob(dataset / part, out / part, fid, beams, source_beams)
-                for part in PARTS for fid in reduce_ids(dataset, part)]
-        if not jobs:
-            raise ValueError(f"{dataset}: no training/velodyne/*.bin (or testing/) to reduce")
-        check_reduction(jobs[0])
-        claim_output(dataset, out, {"command": "reduce-beams", "beams": beams,
-                                    "source_beams": source_beams})
-        mirror_dataset(dataset, out)
-        LocalBackend(workers).map(reduce_frame, jobs, desc=f"reduce to {beams} beams")
+        with LocalBackend(workers) as backend:
+            ids = reduce_dataset(dataset, out, beams, source_beams, backend,
+                                 sensor_beams=sensor_beams(dataset))
     except ValueError as e:
         raise click.ClickException(str(e)) from None
-    click.echo(f"{len(jobs)} scans reduced to {beams} beams in {out}")
+    click.echo(f"{len(ids)} scans reduced to {beams} beams in {out}")

@@ -32,23 +32,19 @@ def rescan(dataset: Path, out: Path, lidar_preset: str, beams: int | None,
 
     --fog-extinction / --rain-rate change the weather the LiDAR sees (a sensor study: images and
     labels stay those of the world's own weather)."""
-    from simgen.lidar import preset
-    from simgen.lidar.dataset import (RescanJob, claim_output, mirror_dataset, rescan_frame,
-                                      rescan_ids)
-    from testbed.backends import LocalBackend
+    from simgen.rescan import RescanRequest, WeatherOverride
+    from simgen.rescan import rescan as rescan_dataset
+    from simgen.spec import LidarSection
 
+    from .backends import LocalBackend
+
+    weather = (WeatherOverride(fog_extinction, rain_rate)
+               if fog_extinction is not None or rain_rate is not None else None)
+    request = RescanRequest(LidarSection(preset=lidar_preset, beams=beams, max_range=max_range),
+                            weather)
     try:
-        preset(lidar_preset, beams=beams, max_range=max_range)  # fail before any work
-        ids = rescan_ids(dataset)
-        lidar = {"preset": lidar_preset, "beams": beams, "max_range": max_range}
-        weather = {k: v for k, v in (("fog_extinction", fog_extinction), ("rain_rate", rain_rate))
-                   if v is not None}
-        if weather:
-            lidar["weather"] = weather
-        claim_output(dataset, out, {"command": "rescan", "lidar": lidar})
-        mirror_dataset(dataset, out)
-        jobs = [RescanJob(dataset / "training", out / "training", fid, lidar) for fid in ids]
-        LocalBackend(workers).map(rescan_frame, jobs, desc=f"rescan {lidar_preset}")
+        with LocalBackend(workers) as backend:
+            ids = rescan_dataset(dataset, out, request, backend)
     except ValueError as e:
         raise click.ClickException(str(e)) from None
     click.echo(f"{len(ids)} frames rescanned with {lidar_preset} in {out}")

@@ -4,24 +4,29 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 
 from .cmd_sweep import with_backend_options
-from .sweep import Axes, SceneRef, SweepSpec, execute, models_key, plan
+
+if TYPE_CHECKING:
+    from .sweep import SweepSpec
 
 RUN_BEAMS = [64, 32, 16]
 
 
 def run_spec(spec_path: Path, frames: int | None, seed: int | None) -> SweepSpec:
     """The main job as a sweep: 64/32/16 beams x every applicable method x detector and oracle boxes."""
+    from lifter.methods import METHODS
     from simgen.spec import load_spec
+
+    from .sweep import Axes, SceneRef, SweepSpec
 
     scene = load_spec(spec_path)
     has_lidar = scene.lidar is not None
-    methods = ["frustum", "fit", "mono"] if has_lidar else ["mono"]
-    if scene.rig.type == "gantry":
-        methods.append("roadside")
+    methods = [m.name for m in METHODS.values() if (has_lidar or not m.needs_scan)
+               and (m.rig == "any" or scene.rig.type == "gantry")]
     axes = Axes(lidar=[scene.lidar.preset] if has_lidar else [], beams=RUN_BEAMS if has_lidar else [],
                 max_range=[scene.lidar.max_range] if has_lidar else [None],
                 method=methods, boxes=["detector", "gt"])
@@ -45,11 +50,13 @@ def run(spec_path: Path, out: Path | None, frames: int | None, seed: int | None,
     metrics.csv, errors.csv, plots and example frames."""
     from .backends import make_backend
     from .report import write_report
+    from .sweep import execute, plan
 
     t0 = time.perf_counter()
     spec = run_spec(spec_path, frames, seed)
     p = plan(spec)
-    results = execute(p, make_backend(backend, workers, address), workers)
+    with make_backend(backend, workers, address) as b:
+        results = execute(p, b)
     out = out or Path("results") / spec.name
     intro = (f"`testbed run {spec_path}`: {len(p.points)} points (methods "
              f"{', '.join(spec.axes.method)}; LiDAR {', '.join(str(b) for b in spec.axes.beams) or 'none'} "
@@ -70,6 +77,7 @@ def draw_examples(p, results, folder: Path, n: int) -> list[Path]:
 
     from .draw import MIN_SCORE, draw_frame, plt
     from .stages import is_done
+    from .sweep import models_key
 
     chosen = None
     for pt, _ in results:  # prefer fit on 64 beams with detector boxes, else the first point

@@ -6,9 +6,6 @@ from pathlib import Path
 
 import click
 
-from kitti.dataset import KittiDataset
-from kitti.io import atomic_path
-
 
 @click.command()
 @click.argument("dataset", type=click.Path(exists=True, file_okay=False, path_type=Path))
@@ -23,6 +20,9 @@ from kitti.io import atomic_path
 def show(dataset: Path, frame: str, out: Path, pred: Path | None, min_score: float, part: str) -> None:
     """Draw FRAME of DATASET: the image with the labelled 3D boxes projected, and a bird's-eye
     view of the LiDAR points with the boxes, side by side."""
+    from kitti.dataset import KittiDataset
+    from kitti.io import atomic_path
+
     from .draw import draw_frame, plt
 
     fid = frame.zfill(6)

@@ -6,10 +6,6 @@ from pathlib import Path
 
 import click
 
-from .backends import make_backend
-from .report import write_report
-from .sweep import SweepSpecError, execute, load_sweep, plan
-
 backend_options = [
     click.option("--workers", default=1, show_default=True, type=click.IntRange(1),
                  help="Parallel jobs (processes for the local backend, CPUs for a local Ray)."),
@@ -35,13 +31,18 @@ def sweep(sweep_spec: Path, out: Path | None, data_dir: Path | None, workers: in
           address: str | None) -> None:
     """Run SWEEP_SPEC: re-scan the same worlds for every LiDAR configuration, lift, evaluate, and
     write metrics.csv, errors.csv, report.md and plots. A stopped sweep resumes."""
+    from .backends import make_backend
+    from .report import write_report
+    from .sweep import SweepSpecError, execute, load_sweep, plan
+
     try:
         spec = load_sweep(sweep_spec)
     except SweepSpecError as e:
         raise click.ClickException(str(e)) from None
     p = plan(spec, data_dir)
     click.echo(f"sweep '{spec.name}': {len(p.scans)} scan configurations, {len(p.points)} points")
-    results = execute(p, make_backend(backend, workers, address), workers)
+    with make_backend(backend, workers, address) as b:
+        results = execute(p, b)
     out = out or Path("results") / spec.name
     intro = (f"Sweep spec: `{sweep_spec}`; {len(p.points)} points over {len(spec.scenes)} scene(s): "
              + ", ".join(f"`{s.spec}` (frames {s.frames or 'from spec'}, seed {s.seed if s.seed is not None else 'from spec'})"

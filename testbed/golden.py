@@ -1,6 +1,6 @@
 """Golden scenes: the whole pipeline on tiny committed scenes, its key numbers pinned in a file.
 
-`tests/test_golden.py` runs it and compares with `tests/golden/expected.json` within TOLERANCE, so a
+The test suite runs it and compares with `scenes/golden/expected.json` within TOLERANCE, so a
 change anywhere (meshes, renderer, LiDAR, detector, lifter, evaluation) that moves a number is caught.
 When a change is meant to move them, regenerate the expectation and commit it with the change:
 
@@ -14,10 +14,12 @@ import json
 import tempfile
 from pathlib import Path
 
+from lifter.methods import METHODS
+
 from .backends import LocalBackend
 from .sweep import Axes, SceneRef, SweepSpec, execute, plan
 
-GOLDEN_DIR = Path(__file__).resolve().parent.parent / "tests" / "golden"
+GOLDEN_DIR = Path(__file__).resolve().parent.parent / "scenes" / "golden"
 EXPECTED = GOLDEN_DIR / "expected.json"
 # AP in points (0-100) and errors in metres / degrees; the pipeline is deterministic on one machine,
 # the tolerance absorbs floating-point differences between BLAS builds.
@@ -29,7 +31,8 @@ def golden_sweep(root: Path) -> SweepSpec:
         name="golden",
         scenes=[SceneRef(spec=GOLDEN_DIR / "street.yaml")],
         axes=Axes(lidar=["hdl64e"], beams=[64, 16], beam_mode=["native"],
-                  method=["fit", "frustum", "mono"], boxes=["gt", "detector"]),
+                  method=[n for n, m in METHODS.items() if m.rig == "any"],
+                  boxes=["gt", "detector"]),
         split="val", range_bins=[0, 20, 40, float("inf")], data_dir=root)
 
 
@@ -49,17 +52,20 @@ def key_numbers(results) -> dict:
     return out
 
 
-def compute(root: Path | None = None) -> dict:
+def compute(root: Path | None = None, workers: int = 1) -> dict:
+    """The key numbers of the golden sweep, run under `root` (default: a temporary folder)."""
     with tempfile.TemporaryDirectory() as tmp:
         spec = golden_sweep(Path(root or tmp))
-        return key_numbers(execute(plan(spec), LocalBackend(1)))
+        with LocalBackend(workers) as backend:
+            return key_numbers(execute(plan(spec), backend))
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--update", action="store_true", help=f"rewrite {EXPECTED}")
+    ap.add_argument("--workers", type=int, default=2, help="worker processes")
     args = ap.parse_args()
-    numbers = compute()
+    numbers = compute(workers=args.workers)
     text = json.dumps(numbers, indent=1, sort_keys=True) + "\n"
     if args.update:
         EXPECTED.write_text(text)

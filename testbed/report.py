@@ -1,6 +1,6 @@
 """Sweep and run reports: one long CSV of every number, a Markdown summary and plots.
 
-Input is what `testbed evaluate --json` wrote for each point (keys `ap`, `range_bins`, `errors`);
+Input is the evaluation JSON of each point (`kitti.eval`, as `testbed evaluate --json` writes it) (keys `ap`, `range_bins`, `errors`);
 nothing is recomputed here, so a report can be rebuilt from a finished sweep at any time.
 """
 
@@ -17,12 +17,11 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
+from kitti.eval.protocol import DIFFICULTIES as DIFFS  # noqa: E402
 from kitti.io import atomic_path, atomic_write_text  # noqa: E402
 
 from .sweep import Point, weather_suffix  # noqa: E402
 
-DIFFS = ("easy", "moderate", "hard")
-METRICS = ("2d", "bev", "3d", "aos")
 POINT_COLS = ("scene", "lidar", "beams", "beam_mode", "max_range", "lidar_weather", "method", "boxes")
 CSV_COLS = POINT_COLS + ("class", "metric", "iou", "difficulty", "range_m", "n_gt", "ap_r40", "ap_r11")
 ERR_COLS = POINT_COLS + ("class", "match", "range_m", "n", "centre_mean", "centre_median",

@@ -1,30 +1,26 @@
-"""Pipeline stages run through the `testbed` command line, in this process.
+"""Pipeline stages as library calls, each resumable: generate, rescan, reduce beams, detect, lift
+and evaluate.
 
-The files on disk are the contract between stages (ARCHITECTURE.md), and the command line is the one
-interface every stage keeps stable, so a pipeline drives the stages exactly as a user would.
-Each stage writes into its own folder and marks it complete with a `.done` file written last, so a
-stopped pipeline resumes by skipping what is marked.
+Each stage calls the library function a user would call from Python (and the `testbed`
+subcommand wraps), writes into its own folder and marks it complete with a `.done` file written
+last, so a stopped pipeline resumes by skipping what is marked. Stages that touch many frames map
+their per-frame jobs on the run's one backend; the scan stages take many scans at once, so every
+frame of every scan configuration is one job on that backend.
 """
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
-import io
 import json
+from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from kitti.io import atomic_write_text
+from kitti.jobs import Backend
 
-
-def invoke(*args: object) -> None:
-    """Run `testbed ARGS...` in this process; a failing stage raises. The stage's printout (the
-    evaluation table of every point, say) is dropped: its files are what the pipeline reads;
-    progress bars still show (stderr)."""
-    from .cli import cli
-
-    with contextlib.redirect_stdout(io.StringIO()):
-        cli.main(args=[str(a) for a in args], prog_name="testbed", standalone_mode=False)
+if TYPE_CHECKING:  # simgen is imported only when a stage that needs it runs
+    from simgen.rescan import RescanRequest
 
 
 def is_done(folder: Path) -> bool:
@@ -46,59 +42,110 @@ def digest(*parts: object) -> str:
     return h.hexdigest()[:10]
 
 
-def _options(**values) -> list:
-    """`--name value` for every value that is set (None leaves the command's default)."""
-    return [a for k, v in values.items() if v is not None for a in (f"--{k.replace('_', '-')}", v)]
+def generate(spec: Path, out: Path, frames: int | None, seed: int | None,
+             backend: Backend) -> Path:
+    from simgen.generate import generate as write_dataset
+    from simgen.spec import load_spec
 
-
-def generate(spec: Path, out: Path, frames: int | None, seed: int | None, workers: int) -> Path:
     if not is_done(out):
-        invoke("generate", spec, "--out", out, "--workers", workers,
-               *_options(frames=frames, seed=seed))
+        write_dataset(load_spec(spec), out, frames=frames, seed=seed, backend=backend)
         mark_done(out, {"spec": str(spec), "frames": frames, "seed": seed})
     return out
 
 
-def detect(data: Path, out: Path, split: str) -> Path:
+def detect(data: Path, out: Path, split: str, threads: int = 2) -> Path:
+    """The shipped detector over the split, in this process on `threads` CPU threads."""
+    import torch
+
+    from detector.infer import detect_dataset
+
     if not is_done(out):
-        invoke("detect", "--data", data, "--out", out, "--split", split)
+        torch.set_num_threads(threads)
+        detect_dataset(data, out, None, split)
         mark_done(out, {"data": str(data), "split": split})
     return out
 
 
-def rescan(data: Path, out: Path, lidar: str, beams: int | None, max_range: float | None,
-           weather=None, workers: int = 1) -> Path:
-    """`weather` (fog_extinction, rain_rate attributes) overrides what the LiDAR sees."""
-    if not is_done(out):
-        invoke("rescan", data, "--out", out, "--lidar", lidar, "--workers", workers,
-               *_options(beams=beams, max_range=max_range,
-                         fog_extinction=weather and weather.fog_extinction,
-                         rain_rate=weather and weather.rain_rate))
-        mark_done(out, {"data": str(data), "lidar": lidar, "beams": beams, "max_range": max_range,
-                        "weather": None if weather is None else weather.model_dump()})
-    return out
+@dataclass(frozen=True)
+class Rescan:
+    """One scan configuration of a generated dataset's worlds."""
+
+    base: Path
+    out: Path
+    request: RescanRequest
 
 
-def reduce_beams(data: Path, out: Path, beams: int) -> Path:
-    if not is_done(out):
-        invoke("reduce-beams", "--data", data, "--beams", beams, "--out", out)
-        mark_done(out, {"data": str(data), "beams": beams})
-    return out
+def rescan(scans: list[Rescan], backend: Backend) -> None:
+    """Every frame of every scan not yet done, as one batch of jobs on the backend."""
+    from simgen.rescan import rescan_frame, rescan_jobs
+
+    todo = [s for s in scans if not is_done(s.out)]
+    jobs = [j for s in todo for j in rescan_jobs(s.base, s.out, s.request)]
+    if jobs:
+        backend.map(rescan_frame, jobs, desc="rescan")
+    for s in todo:
+        lidar = s.request.lidar
+        weather = s.request.weather
+        mark_done(s.out, {"data": str(s.base), "lidar": lidar.preset, "beams": lidar.beams,
+                          "max_range": lidar.max_range,
+                          "weather": None if weather is None else weather.record()})
 
 
-def lift_and_evaluate(data: Path, boxes: str | Path, method: str, split: str, out: Path,
-                      range_bins: list[float]) -> dict:
-    """Lift the split's 2D boxes to 3D with `method`, evaluate, return the evaluation JSON."""
-    result = out / "eval.json"
-    if not is_done(out):
-        invoke("lift", "--data", data, "--boxes", boxes, "--method", method, "--split", split,
-               "--out", out / "pred")
-        invoke("evaluate", "--gt", data / "training" / "label_2", "--pred", out / "pred",
-               "--split", data / "ImageSets" / f"{split}.txt", "--json", result,
-               "--range-bins", ",".join(_fmt_bin(b) for b in range_bins))
-        mark_done(out, {"data": str(data), "boxes": str(boxes), "method": method})
+@dataclass(frozen=True)
+class Reduction:
+    """Rings dropped from a dataset's scans: every (source / beams)-th one kept."""
+
+    data: Path
+    out: Path
+    beams: int
+
+
+def reduce_beams(reductions: list[Reduction], backend: Backend) -> None:
+    from kitti.reduce import reduce_frame, reduce_jobs
+
+    todo = [r for r in reductions if not is_done(r.out)]
+    jobs = [j for r in todo
+            for j in reduce_jobs(r.data, r.out, r.beams, sensor_beams=sensor_beams(r.data))]
+    if jobs:
+        backend.map(reduce_frame, jobs, desc="reduce beams")
+    for r in todo:
+        mark_done(r.out, {"data": str(r.data), "beams": r.beams})
+
+
+def sensor_beams(data: Path):
+    """How to count a generated dataset's beams from its meta (the simulator's sensor table);
+    None for other datasets, so real KITTI never imports the simulator."""
+    if not any((data / part / "meta").is_dir() for part in ("training", "testing")):
+        return None
+    from simgen.lidar import beams_of
+
+    return beams_of
+
+
+@dataclass(frozen=True)
+class LiftJob:
+    """Lift a split's 2D boxes with one method and evaluate the result against the labels."""
+
+    data: Path
+    detections: Path | None  # None: the labels' boxes (oracle)
+    method: str
+    split: str
+    out: Path
+    range_bins: tuple[float, ...]
+
+
+def lift_and_evaluate(job: LiftJob) -> dict:
+    """Lift, evaluate, write out/eval.json; returns the evaluation JSON."""
+    from kitti.eval import evaluate_folders
+    from lifter.pipeline import lift_dataset
+
+    result = job.out / "eval.json"
+    if not is_done(job.out):
+        lift_dataset(job.data, job.detections, job.method, job.out / "pred", job.split)
+        res = evaluate_folders(job.data / "training" / "label_2", job.out / "pred",
+                               job.data / "ImageSets" / f"{job.split}.txt",
+                               range_bins=list(job.range_bins))
+        atomic_write_text(result, json.dumps(res.to_json(), indent=1) + "\n")
+        boxes = "gt" if job.detections is None else str(job.detections)
+        mark_done(job.out, {"data": str(job.data), "boxes": boxes, "method": job.method})
     return json.loads(result.read_text())
-
-
-def _fmt_bin(b: float) -> str:
-    return "inf" if b == float("inf") else f"{b:g}"

@@ -1,10 +1,10 @@
 """Sweeps: the same worlds re-scanned with other sensors, lifted and evaluated at every point.
 
 A sweep spec names the scenes and the axes. Every scan configuration re-scans the worlds of the
-scene's base dataset (`testbed rescan`) or drops rings from its 64-beam scan (`testbed
-reduce-beams`, the thesis's way), so across a sweep the images and labels are byte-identical and
-only the LiDAR changes. Scans and points are independent jobs for a backend; each marks itself done
-on disk, so a stopped sweep resumes where it stopped.
+scene's base dataset (`simgen.rescan`) or drops rings from its 64-beam scan (`kitti.reduce`, the
+thesis's way), so across a sweep the images and labels are byte-identical and only the LiDAR
+changes. Frames and points are independent jobs on the run's one backend; each stage marks itself
+done on disk, so a stopped sweep resumes where it stopped.
 """
 
 from __future__ import annotations
@@ -12,15 +12,18 @@ from __future__ import annotations
 import itertools
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Literal
+from typing import TYPE_CHECKING, Annotated, Literal
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, field_validator
+
+from kitti.jobs import Backend
+from lifter.methods import METHODS
 
 from . import stages
-from .backends import Backend
 
-LIDAR_METHODS = ("frustum", "fit")  # the others use the image alone
+if TYPE_CHECKING:
+    from simgen.rescan import RescanRequest
 
 
 class SceneRef(BaseModel):
@@ -38,6 +41,15 @@ class LidarWeather(BaseModel):
     rain_rate: float = Field(0.0, ge=0.0)  # mm/h
 
 
+def _known_method(name: str) -> str:
+    if name not in METHODS:
+        raise ValueError(f"unknown lifting method '{name}' (one of {', '.join(METHODS)})")
+    return name
+
+
+MethodName = Annotated[str, AfterValidator(_known_method)]  # a name of lifter.methods.METHODS
+
+
 class Axes(BaseModel):
     model_config = ConfigDict(extra="forbid")
     lidar: list[str] = ["hdl64e"]
@@ -45,8 +57,8 @@ class Axes(BaseModel):
     beam_mode: list[Literal["native", "dropped"]] = ["native"]
     max_range: list[float | None] = [None]
     weather: list[LidarWeather | None] = [None]  # None: the world's own weather
-    method: list[Literal["frustum", "fit", "mono", "roadside"]] = ["fit"]
-    boxes: list[Literal["gt", "detector"]] = ["gt"]
+    method: list[MethodName] = ["fit"]
+    boxes: list[Literal["gt", "detector"]] = ["gt"]  # 2D boxes from the labels or the detector
 
     @field_validator("beams")
     @classmethod
@@ -54,6 +66,7 @@ class Axes(BaseModel):
         if any(b <= 0 for b in v):
             raise ValueError("beam counts must be positive")
         return v
+
 
 
 class SweepSpec(BaseModel):
@@ -119,9 +132,9 @@ class Point:
     """One evaluated configuration: a scene, a scan, a lifting method and a source of 2D boxes."""
 
     scene: str
-    scan: ScanConfig | None  # None for image-only methods (mono): independent of the LiDAR
+    scan: ScanConfig | None  # None for methods that need no scan: independent of the LiDAR
     method: str
-    boxes: str
+    boxes: str  # gt | detector
 
     @property
     def key(self) -> str:
@@ -157,7 +170,7 @@ def plan(spec: SweepSpec, root: Path | None = None) -> Plan:
     for scene in spec.scenes:
         name = scene_name(scene)
         for method, boxes in itertools.product(ax.method, ax.boxes):
-            if method in LIDAR_METHODS:
+            if METHODS[method].needs_scan:
                 points += [Point(name, s, method, boxes) for s in scans]
             else:
                 points.append(Point(name, None, method, boxes))
@@ -168,48 +181,19 @@ def scene_name(scene: SceneRef) -> str:
     return f"{scene.spec.stem}-{stages.digest(scene.spec, scene.frames, scene.seed)}"
 
 
-@dataclass(frozen=True)
-class ScanJob:
-    base: Path
-    out: Path
-    config: ScanConfig
-    parent: Path | None  # the 64-beam scan rings are dropped from
-
-
-def native_sensor(lidar: str, beams: int) -> tuple[str, int | None]:
-    """The sensor that natively has `beams` lasers: the named preset at its own count, else a uniform
-    sensor over the HDL-64E's vertical field of view (on a real preset `--beams` drops rings, which
-    is the `dropped` mode)."""
+def rescan_request(c: ScanConfig) -> RescanRequest:
+    """The simulator request of a native scan configuration: the named preset at its own beam
+    count, else a uniform sensor with `beams` lasers over the HDL-64E's vertical field of view (on a
+    real preset fewer beams means dropped rings, which is the `dropped` mode)."""
     from simgen.lidar import preset
+    from simgen.rescan import RescanRequest, WeatherOverride
+    from simgen.spec import LidarSection
 
-    if lidar != "uniform" and len(preset(lidar).elevations_deg) == beams:
-        return lidar, None
-    return "uniform", beams
-
-
-def run_scan_job(job: ScanJob) -> str:
-    c = job.config
-    if c.mode == "native":
-        name, beams = native_sensor(c.lidar, c.beams)
-        stages.rescan(job.base, job.out, name, beams, c.max_range, c.weather)
-    else:
-        stages.reduce_beams(job.parent, job.out, c.beams)
-    return job.out.name
-
-
-@dataclass(frozen=True)
-class PointJob:
-    point: Point
-    data: Path
-    boxes: str
-    out: Path
-    split: str
-    range_bins: tuple[float, ...]
-
-
-def run_point_job(job: PointJob) -> dict:
-    return stages.lift_and_evaluate(job.data, job.boxes, job.point.method, job.split, job.out,
-                                    list(job.range_bins))
+    native = c.lidar != "uniform" and preset(c.lidar).beams == c.beams
+    name, beams = (c.lidar, None) if native else ("uniform", c.beams)
+    weather = None if c.weather is None else WeatherOverride(c.weather.fog_extinction,
+                                                             c.weather.rain_rate)
+    return RescanRequest(LidarSection(preset=name, beams=beams, max_range=c.max_range), weather)
 
 
 def models_key() -> str:
@@ -225,33 +209,28 @@ def models_key() -> str:
     return stages.digest(DETECTOR, LIFTER, *code)
 
 
-def execute(p: Plan, backend: Backend, workers: int = 1) -> list[tuple[Point, dict]]:
-    """Run every stage not yet marked done; return each point with its evaluation JSON."""
+def execute(p: Plan, backend: Backend) -> list[tuple[Point, dict]]:
+    """Run every stage not yet marked done on `backend`; return each point with its evaluation."""
     spec = p.spec
     models = models_key()
     bases, detections = {}, {}
     for scene in spec.scenes:
         name = scene_name(scene)
         bases[name] = stages.generate(scene.spec, p.root / name / "base", scene.frames, scene.seed,
-                                      workers)
+                                      backend)
         if "detector" in spec.axes.boxes:
             detections[name] = stages.detect(bases[name], p.root / name / f"detections-{models}",
                                              spec.split)
-    scan_dirs: dict[tuple[str, ScanConfig], Path] = {}
-    for name in bases:
-        for c in p.scans:
-            scan_dirs[name, c] = p.root / name / "scans" / c.key
-    native = [ScanJob(bases[n], d, c, None) for (n, c), d in scan_dirs.items() if c.mode == "native"]
-    dropped = [ScanJob(bases[n], d, c, scan_dirs[n, c.parent()])
-               for (n, c), d in scan_dirs.items() if c.mode == "dropped"]
-    for jobs in (native, dropped):
-        if jobs:
-            backend.map(run_scan_job, jobs, desc="scans")
+    scan_dirs = {(n, c): p.root / n / "scans" / c.key for n in bases for c in p.scans}
+    stages.rescan([stages.Rescan(bases[n], d, rescan_request(c))
+                   for (n, c), d in scan_dirs.items() if c.mode == "native"], backend)
+    stages.reduce_beams([stages.Reduction(scan_dirs[n, c.parent()], d, c.beams)
+                         for (n, c), d in scan_dirs.items() if c.mode == "dropped"], backend)
     jobs = []
     for pt in p.points:
         data = scan_dirs[pt.scene, pt.scan] if pt.scan else bases[pt.scene]
-        boxes = "gt" if pt.boxes == "gt" else str(detections[pt.scene])
-        jobs.append(PointJob(pt, data, boxes, p.points_dir(models) / pt.key, spec.split,
-                             tuple(spec.range_bins)))
-    results = backend.map(run_point_job, jobs, desc="points")
+        dets = detections[pt.scene] if pt.boxes == "detector" else None
+        jobs.append(stages.LiftJob(data, dets, pt.method, spec.split, p.points_dir(models) / pt.key,
+                                   tuple(spec.range_bins)))
+    results = backend.map(stages.lift_and_evaluate, jobs, desc="points")
     return list(zip(p.points, results))

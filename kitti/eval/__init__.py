@@ -4,6 +4,7 @@ volumetric metrics of the tolling thesis."""
 
 from .annotations import load_annotations
 from .evaluate import evaluate
+from .folders import evaluate_folders
 from .report import EvalResult
 
-__all__ = ["EvalResult", "evaluate", "load_annotations"]
+__all__ = ["EvalResult", "evaluate", "evaluate_folders", "load_annotations"]

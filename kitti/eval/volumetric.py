@@ -1,4 +1,5 @@
-"""The volumetric metrics of the tolling thesis (SOURCES.md, 004), on matched truth/detection pairs.
+"""The volumetric metrics of the tolling thesis (M. Fornes, "Monocular 3D Object Detection for
+Volumetric Identification in the Tolling Industry", NTNU 2023), on matched truth/detection pairs.
 
 Per pair: size precision `P_dim = (1 - sum_{l,w,h} |k^ - k| / k) * 100 %`, size error
 `E_dim = sum |k^ - k|`; location precision `P_loc = (1 - sum_{ground axes} |c^ - c| / (D/2)) * 100 %`,

@@ -14,13 +14,13 @@ in KITTI's files (which is why very dark or grazing returns read exactly 0).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
 
 from ..world import World
-from .rays import ray_table
+from .rays import RayTable, ray_table
 from .spec import LidarSpec
 from .target import Target, build_target
 from .weather import clutter, total_extinction
@@ -40,9 +40,6 @@ class LidarScan:
 
     def __len__(self) -> int:
         return len(self.points)
-
-    def select(self, mask: np.ndarray) -> LidarScan:
-        return LidarScan(**{f.name: getattr(self, f.name)[mask] for f in fields(self)})
 
     def point_counts(self) -> dict[int, int]:
         """Points per actor id (> 0 only): the per-label LiDAR point count."""
@@ -71,27 +68,23 @@ def _motion_shift(tgt: Target, slot: np.ndarray, t_ray: np.ndarray, hit_w: np.nd
     return np.where(safe, np.einsum("ij,ij->i", normal, delta) / np.where(safe, nd, 1.0), 0.0)
 
 
-def scan(world: World, spec: LidarSpec, seed: int | np.random.Generator,
-         target: Target | None = None) -> LidarScan:
-    """Scan `world` with `spec`. Same world, spec and seed: the same points, bit for bit.
-
-    `target` (from build_target(world, spec)) can be passed to reuse the Embree scene.
-    Arithmetic runs in float32 (1e-5 m at 100 m) except the motion correction.
-    """
-    rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
-    rays = ray_table(spec)
-    tgt = target if target is not None else build_target(world, spec)
-    n = len(rays.time)
-
-    d_w = _world_dirs(spec, tuple(world.lidar_pose[:3, :3].ravel().tolist()))
+def _origins(world: World, spec: LidarSpec, rays: RayTable, n: int) -> np.ndarray:
+    """(n, 3) ray origins: with motion, one per firing column (moving with the ego vehicle)
+    shared by its lasers; else the LiDAR's position for every ray."""
     ego_v = np.asarray(world.ego_velocity, dtype=np.float64)
     o0 = world.lidar_pose[:3, 3]
-    if spec.motion and np.any(ego_v):  # one origin per firing column, shared by its lasers
+    if spec.motion and np.any(ego_v):
         col_t = rays.time[:rays.columns, None]
-        origins = np.tile((o0 + col_t * ego_v).astype(np.float32), (spec.beams, 1))
-    else:
-        origins = np.empty((n, 3), np.float32)
-        origins[:] = o0
+        return np.tile((o0 + col_t * ego_v).astype(np.float32), (spec.beams, 1))
+    origins = np.empty((n, 3), np.float32)
+    origins[:] = o0
+    return origins
+
+
+def _first_hits(tgt: Target, spec: LidarSpec, origins: np.ndarray, d_w: np.ndarray,
+                n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The rays that hit (idx), their triangles, ranges and cosines of incidence, and every
+    ray's unnormalised geometric normal (for the motion correction)."""
     if tgt.n_triangles:
         res = tgt.scene.run(origins, d_w, dists=spec.max_range + 1.0, output=1)
         prim, ng = res["primID"], res["Ng"]
@@ -104,19 +97,27 @@ def scan(world: World, spec: LidarSpec, seed: int | np.random.Generator,
     cos_inc = np.einsum("ij,ij->i", ng, d_w)[idx]
     np.abs(cos_inc, out=cos_inc)
     cos_inc *= tgt.tri_inv_ng[tri]
+    return idx, tri, r, cos_inc, ng
 
-    if spec.motion and tri.size and tgt.first_moving < tgt.n_triangles:
-        sel = np.flatnonzero(tri >= tgt.first_moving)
-        if len(sel):
-            j = idx[sel]
-            r64 = r[sel].astype(np.float64)
-            d64 = d_w[j].astype(np.float64)
-            hit_w = origins[j] + r64[:, None] * d64
-            r[sel] = r64 + _motion_shift(tgt, tgt.tri_slot[tri[sel]], rays.time[j], hit_w,
-                                         ng[j].astype(np.float64), d64)
 
-    beta = total_extinction(world.weather) if spec.weather else 0.0
-    rho_cos = tgt.tri_refl[tri] * cos_inc
+def _correct_motion(tgt: Target, rays: RayTable, origins: np.ndarray, d_w: np.ndarray, ng: np.ndarray,
+                    idx: np.ndarray, tri: np.ndarray, r: np.ndarray) -> None:
+    """Shifts the ranges `r` (in place) of hits on moving actors to each ray's own time;
+    in float64, as the shift is small against the range."""
+    sel = np.flatnonzero(tri >= tgt.first_moving)
+    if len(sel):
+        j = idx[sel]
+        r64 = r[sel].astype(np.float64)
+        d64 = d_w[j].astype(np.float64)
+        hit_w = origins[j] + r64[:, None] * d64
+        r[sel] = r64 + _motion_shift(tgt, tgt.tri_slot[tri[sel]], rays.time[j], hit_w,
+                                     ng[j].astype(np.float64), d64)
+
+
+def _detect(spec: LidarSpec, rng: np.random.Generator, beta: float, idx: np.ndarray, r: np.ndarray,
+            rho_cos: np.ndarray) -> np.ndarray:
+    """Which hits are reported: threshold, drop-out, then range noise added to `r` in place
+    (drop-out draws before noise: the order of draws is part of the seed's meaning)."""
     if not spec.detection:
         keep = np.ones(len(r), bool)
     elif beta > 0:  # on the true range: the echo's power does not see the range noise
@@ -131,28 +132,34 @@ def scan(world: World, spec: LidarSpec, seed: int | np.random.Generator,
         noise *= np.float32(spec.noise_sigma)
         r += noise
     keep &= (r >= spec.min_range) & (r <= spec.max_range)
-    aid = tgt.tri_actor[tri]
+    return keep
 
-    if spec.weather and (world.weather.fog_extinction > 0 or world.weather.rain_rate > 0):
-        full_r = np.full(n, np.inf)
-        full_r[idx[keep]] = r[keep]
-        full_p = np.zeros(n)
-        full_p[idx[keep]] = spec.power(rho_cos[keep], r[keep], beta)
-        full_rc = np.zeros(n, np.float32)
-        full_rc[idx[keep]] = rho_cos[keep]
-        full_aid = np.zeros(n, np.int32)
-        full_aid[idx[keep]] = aid[keep]
-        c_d, c_rho = clutter(world.weather, n, rng)
-        ok = (c_d >= spec.min_range) & (c_d < full_r) & (c_d <= spec.max_range)
-        c_p = np.zeros(n)
-        c_p[ok] = spec.power(c_rho[ok], c_d[ok], beta)
-        wins = ok & (c_p >= 1.0) & (c_p > full_p)
-        full_r[wins], full_rc[wins], full_aid[wins] = c_d[wins], c_rho[wins], CLUTTER_ID
-        idx = np.flatnonzero(np.isfinite(full_r))
-        r, rho_cos, aid = full_r[idx].astype(np.float32), full_rc[idx], full_aid[idx]
-    else:
-        idx, r, rho_cos, aid = idx[keep], r[keep], rho_cos[keep], aid[keep]
 
+def _weather_echoes(world: World, spec: LidarSpec, rng: np.random.Generator, n: int, beta: float,
+                    idx: np.ndarray, r: np.ndarray, rho_cos: np.ndarray,
+                    aid: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The kept returns with weather echoes that beat them (or hit rays that returned nothing):
+    an echo wins where it is nearer and stronger than the ray's own return."""
+    full_r = np.full(n, np.inf)
+    full_r[idx] = r
+    full_p = np.zeros(n)
+    full_p[idx] = spec.power(rho_cos, r, beta)
+    full_rc = np.zeros(n, np.float32)
+    full_rc[idx] = rho_cos
+    full_aid = np.zeros(n, np.int32)
+    full_aid[idx] = aid
+    c_d, c_rho = clutter(world.weather, n, rng)
+    ok = (c_d >= spec.min_range) & (c_d < full_r) & (c_d <= spec.max_range)
+    c_p = np.zeros(n)
+    c_p[ok] = spec.power(c_rho[ok], c_d[ok], beta)
+    wins = ok & (c_p >= 1.0) & (c_p > full_p)
+    full_r[wins], full_rc[wins], full_aid[wins] = c_d[wins], c_rho[wins], CLUTTER_ID
+    idx = np.flatnonzero(np.isfinite(full_r))
+    return idx, full_r[idx].astype(np.float32), full_rc[idx], full_aid[idx]
+
+
+def _reflectance(spec: LidarSpec, beta: float, r: np.ndarray, rho_cos: np.ndarray) -> np.ndarray:
+    """The reported reflectance (see the module docstring); may reuse `rho_cos`'s memory."""
     refl = rho_cos * np.exp(np.float32(-2.0 * beta) * r) if beta > 0 else rho_cos
     near = np.flatnonzero(r < spec.saturation_range)
     if len(near):
@@ -161,10 +168,38 @@ def scan(world: World, spec: LidarSpec, seed: int | np.random.Generator,
     refl *= np.float32(100.0)
     np.rint(refl, out=refl)
     refl /= np.float32(100.0)
+    return refl
+
+
+def scan(world: World, spec: LidarSpec, seed: int | np.random.Generator,
+         target: Target | None = None) -> LidarScan:
+    """Scan `world` with `spec`. Same world, spec and seed: the same points, bit for bit.
+
+    `target` (from build_target(world, spec)) can be passed to reuse the Embree scene.
+    Arithmetic runs in float32 (1e-5 m at 100 m) except the motion correction.
+    """
+    rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+    rays = ray_table(spec)
+    tgt = target if target is not None else build_target(world, spec)
+    n = len(rays.time)
+
+    d_w = _world_dirs(spec, tuple(world.lidar_pose[:3, :3].ravel().tolist()))
+    origins = _origins(world, spec, rays, n)
+    idx, tri, r, cos_inc, ng = _first_hits(tgt, spec, origins, d_w, n)
+    if spec.motion and tri.size and tgt.first_moving < tgt.n_triangles:
+        _correct_motion(tgt, rays, origins, d_w, ng, idx, tri, r)
+
+    beta = total_extinction(world.weather) if spec.weather else 0.0
+    rho_cos = tgt.tri_refl[tri] * cos_inc
+    keep = _detect(spec, rng, beta, idx, r, rho_cos)
+    aid = tgt.tri_actor[tri]
+    idx, r, rho_cos, aid = idx[keep], r[keep], rho_cos[keep], aid[keep]
+    if spec.weather and (world.weather.fog_extinction > 0 or world.weather.rain_rate > 0):
+        idx, r, rho_cos, aid = _weather_echoes(world, spec, rng, n, beta, idx, r, rho_cos, aid)
 
     points = np.take(rays.dirs4, idx, axis=0)
     points *= r[:, None]
-    points[:, 3] = refl
+    points[:, 3] = _reflectance(spec, beta, r, rho_cos)
     return LidarScan(points=points, ring=rays.ring[idx], azimuth=rays.azimuth[idx],
                      time=rays.time32[idx], actor_id=aid.astype(np.int32, copy=False))
 

@@ -1,6 +1,6 @@
 """What a rotating multi-beam LiDAR is: beam table, firing pattern, range limits, error model.
 
-Presets come from the datasheet facts in shared/design/SENSORS.md. Every field is plain data
+Presets come from the sensors' datasheets (elevation tables, angular steps, ranges, accuracy). Every field is plain data
 (tuples, floats), so a spec is hashable and the ray table it implies is computed once.
 """
 
@@ -11,12 +11,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-# HDL-64E S2 as mounted on the KITTI car: an upper block of 32 lasers from +2.0 deg down in
-# 1/3 deg steps and a lower block of 32 lasers ending at -24.9 deg in about 1/2 deg steps.
-_HDL64E_UPPER = tuple(round(2.0 - i / 3.0, 4) for i in range(32))  # +2.0 ... -8.333
-# lower block: -8.83 ... -24.9
-_HDL64E_LOWER = tuple(round(-8.83 - i * (24.9 - 8.83) / 31.0, 4) for i in range(32))
-HDL64E_ELEVATIONS = _HDL64E_UPPER + _HDL64E_LOWER
+from kitti.rings import HDL64E_ELEVATIONS  # KITTI's own sensor: its table lives in kitti
 
 HDL32E_ELEVATIONS = tuple(round(10.67 - i * (10.67 + 30.67) / 31.0, 4) for i in range(32))
 
@@ -143,7 +138,8 @@ def _subsample(elev: tuple[float, ...], beams: int, name: str) -> tuple[float, .
     return elev[:: n // beams]
 
 
-# The real sensors' tables and datasheet figures (SENSORS.md).
+# The real sensors' elevation tables and datasheet figures (Velodyne HDL-64E S2, HDL-32E, VLP-32C,
+# VLP-16 manuals).
 _REAL = {
     "hdl64e": LidarSpec("hdl64e", HDL64E_ELEVATIONS, azimuth_step_deg=0.18, max_range=120.0,
                         noise_sigma=0.015, bias_sigma=0.01, dark_range=50.0, bright_range=120.0),
@@ -190,3 +186,8 @@ def preset(name: str, beams: int | None = None, max_range: float | None = None,
         spec = replace(spec, max_range=float(max_range))
     return spec
 
+
+
+def beams_of(record: dict) -> int:
+    """Beam count of a sensor as a dataset's meta records it ({preset, beams, max_range})."""
+    return preset(record["preset"], beams=record.get("beams")).beams

@@ -1,0 +1,114 @@
+"""Ring bookkeeping: keep every k-th ring (thesis 000: 64 -> 32 -> 16) and recover the rings
+of a real KITTI scan that has no side file.
+
+Recovery. KITTI .bin points are stored laser by laser, each laser one revolution in firing
+order, so within a ring the azimuth atan2(y, x) moves steadily one way and it jumps back by
+about 2 pi where the next ring starts. Rings are the runs between those jumps, numbered from
+the top by their median elevation; a laser whose revolution does not start exactly at the back
+wraps inside its own ring, and the few points that end up on the wrong side of a jump rejoin
+the ring they share an elevation with. When the jumps do not give exactly the expected ring count
+(an empty ring, a ring cut at the back), rings come from 1-D k-means on the elevation angle
+instead, started from the HDL-64E table.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+# The HDL-64E S2 as mounted on the KITTI car (KITTI's only LiDAR): an upper block of 32 lasers
+# from +2.0 deg down in 1/3 deg steps and a lower block of 32 lasers ending at -24.9 deg in about
+# 1/2 deg steps. Ring recovery starts its elevation clustering from this table; the simulator's
+# `hdl64e` preset uses the same one.
+_HDL64E_UPPER = tuple(round(2.0 - i / 3.0, 4) for i in range(32))  # +2.0 ... -8.333
+_HDL64E_LOWER = tuple(round(-8.83 - i * (24.9 - 8.83) / 31.0, 4) for i in range(32))  # -8.83 ...
+HDL64E_ELEVATIONS = _HDL64E_UPPER + _HDL64E_LOWER
+
+
+def kept_rings(beams_in: int, beams_out: int) -> np.ndarray:
+    """Rings 0, k, 2k, ... with k = beams_in / beams_out (ring 0 = top beam)."""
+    if beams_out <= 0 or beams_out > beams_in or beams_in % beams_out:
+        raise ValueError(f"--beams {beams_out} must divide the scan's {beams_in} beams "
+                         f"(keeps every {beams_in}//N-th ring)")
+    return np.arange(0, beams_in, beams_in // beams_out)
+
+
+def reduce_rings(ring: np.ndarray, beams_in: int, beams_out: int) -> tuple[np.ndarray, np.ndarray]:
+    """(mask of points kept, their new ring index 0..beams_out-1)."""
+    k = beams_in // beams_out
+    kept_rings(beams_in, beams_out)
+    mask = (ring.astype(np.int64) % k) == 0
+    return mask, (ring[mask] // k).astype(np.uint8)
+
+
+def elevation(points: np.ndarray) -> np.ndarray:
+    return np.arctan2(points[:, 2], np.hypot(points[:, 0], points[:, 1]))
+
+
+def rings_from_azimuth_wraps(points: np.ndarray, jitter_deg: float = 0.25) -> np.ndarray:
+    """Run index per point: a new run starts wherever the azimuth wraps (jumps by more than
+    pi either way) or steps back against the rotation by more than `jitter_deg`."""
+    if len(points) < 2:
+        return np.zeros(len(points), np.int64)
+    az = np.arctan2(points[:, 1], points[:, 0])
+    d = np.diff(az)
+    small = d[np.abs(d) < np.pi]
+    direction = np.sign(np.median(small)) if len(small) else 1.0
+    starts = (np.abs(d) > np.pi) | (direction * d < -np.deg2rad(jitter_deg))
+    return np.concatenate([[0], np.cumsum(starts)])
+
+
+def rings_from_elevation(points: np.ndarray, beams: int, iterations: int = 30) -> np.ndarray:
+    """1-D k-means on elevation; ring 0 is the highest cluster."""
+    el = np.degrees(elevation(points))
+    if beams == len(HDL64E_ELEVATIONS):
+        centres = np.asarray(HDL64E_ELEVATIONS, float)[::-1].copy()  # ascending
+    else:
+        centres = np.quantile(el, (np.arange(beams) + 0.5) / beams)
+    for _ in range(iterations):
+        centres = np.sort(centres)
+        lab = np.searchsorted(0.5 * (centres[1:] + centres[:-1]), el)
+        sums = np.bincount(lab, weights=el, minlength=beams)
+        cnt = np.bincount(lab, minlength=beams)
+        new = np.where(cnt > 0, sums / np.maximum(cnt, 1), centres)
+        if np.allclose(new, centres, atol=1e-6):
+            break
+        centres = new
+    centres = np.sort(centres)
+    lab = np.searchsorted(0.5 * (centres[1:] + centres[:-1]), el)
+    return (beams - 1 - lab).astype(np.int64)
+
+
+def merge_short_runs(runs: np.ndarray, el: np.ndarray, share: float = 0.05) -> np.ndarray:
+    """Fold runs shorter than `share` of the median run into the neighbour nearest in elevation.
+
+    A laser whose revolution does not start exactly at the back wraps inside its own ring: a
+    few of its points land beyond the wrap, next to the neighbouring laser's, and form short
+    runs; each rejoins the ring it shares an elevation with.
+    """
+    runs = runs.copy()
+    while True:
+        ids, start, length = np.unique(runs, return_index=True, return_counts=True)
+        short = np.flatnonzero(length < share * np.median(length))
+        if len(ids) < 2 or not len(short):
+            break
+        k = short[np.argmin(length[short])]
+        med = [np.median(el[runs == ids[j]]) if 0 <= j < len(ids) else np.inf
+               for j in (k - 1, k, k + 1)]
+        into = k - 1 if abs(med[0] - med[1]) <= abs(med[2] - med[1]) else k + 1
+        runs[runs == ids[k]] = ids[into]
+    return np.unique(runs, return_inverse=True)[1]
+
+
+def recover_rings(points: np.ndarray, beams: int = 64) -> tuple[np.ndarray, str]:
+    """Ring per point (0 = top) of a KITTI-ordered scan, and the method that found it."""
+    el = elevation(points)
+    if len(points):
+        runs = merge_short_runs(rings_from_azimuth_wraps(points), el)
+    else:
+        runs = np.zeros(0, np.int64)
+    if len(points) and runs.max() + 1 == beams:
+        med = np.array([np.median(el[runs == k]) for k in range(beams)])
+        rank = np.empty(beams, np.int64)
+        rank[np.argsort(-med)] = np.arange(beams)
+        return rank[runs].astype(np.uint8), "azimuth-wrap"
+    return rings_from_elevation(points, beams).astype(np.uint8), "elevation-kmeans"
