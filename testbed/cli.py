@@ -16,7 +16,7 @@ COMMANDS = {  # name -> module defining a click command of the same name (dashes
     "generate": "cmd_generate", "rescan": "cmd_rescan", "reduce-beams": "cmd_reduce_beams",
     "detect": "cmd_detect", "train-detector": "cmd_train_detector", "lift": "cmd_lift",
     "train-lifter": "cmd_train_lifter", "evaluate": "cmd_evaluate", "run": "cmd_run",
-    "sweep": "cmd_sweep", "show": "cmd_show",
+    "sweep": "cmd_sweep", "show": "cmd_show", "fidelity": "cmd_fidelity",
 }
 
 

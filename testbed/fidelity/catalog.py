@@ -1,0 +1,103 @@
+"""The headline statistics: one number per dataset each, under a stable key shared by the report,
+fidelity.json and tolerances.yaml. Per-frame values are summarised by their median over frames,
+per-object ones (distance, 2D height, projection gap, points on a Car) by their median over
+objects."""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from .images import CANNY
+from .lidar import GROUND_M
+from .stats import DatasetStats
+
+
+@dataclass(frozen=True)
+class Stat:
+    key: str
+    label: str
+    unit: str
+    value: Callable[[DatasetStats], float]
+
+
+def _median(v: np.ndarray) -> float:
+    v = np.asarray(v, np.float64)
+    v = v[np.isfinite(v)]
+    return float(np.median(v)) if len(v) else float("nan")
+
+
+def _share(v: np.ndarray, test: Callable[[np.ndarray], np.ndarray]) -> float:
+    return float(np.mean(test(v))) if len(v) else float("nan")
+
+
+def med(key: str) -> Callable[[DatasetStats], float]:
+    return lambda d: _median(d.get(key))
+
+
+def ring_median(key: str, pick: Callable[[np.ndarray], float]) -> Callable[[DatasetStats], float]:
+    """Median over frames per ring, then `pick` over the 64 rings."""
+    def value(d: DatasetStats) -> float:
+        rows = d.rows.get(key)
+        if rows is None or not len(rows):
+            return float("nan")
+        with warnings.catch_warnings():  # a ring empty in every frame stays NaN
+            warnings.simplefilter("ignore", RuntimeWarning)
+            return float(pick(np.nanmedian(rows, axis=0)))
+    return value
+
+
+def car_points(lo: float, hi: float) -> Callable[[DatasetStats], float]:
+    def value(d: DatasetStats) -> float:
+        dist = d.get("lidar.car_distance_m")
+        return _median(d.get("lidar.car_points")[(dist >= lo) & (dist < hi)])
+    return value
+
+
+STATS: tuple[Stat, ...] = (
+    Stat("lidar.points_per_sweep", "points per sweep", "", med("lidar.points")),
+    *(Stat(f"lidar.range_p{q}_m", f"range, {q}th percentile", "m", med(f"lidar.range_p{q}_m"))
+      for q in (10, 50, 90, 99)),
+    Stat("lidar.beyond_40m_share", "share of returns beyond 40 m", "", med("lidar.beyond_40m")),
+    Stat("lidar.beyond_80m_share", "share of returns beyond 80 m", "", med("lidar.beyond_80m")),
+    Stat("lidar.returns_per_ring", "returns per ring (median ring)", "",
+         ring_median("lidar.ring_returns", np.median)),
+    Stat("lidar.ring_elevation_top_deg", "elevation of the top ring", "deg",
+         ring_median("lidar.ring_elevation_deg", lambda e: e[np.isfinite(e)][0])),
+    Stat("lidar.ring_elevation_bottom_deg", "elevation of the lowest ring with returns", "deg",
+         ring_median("lidar.ring_elevation_deg", lambda e: e[np.isfinite(e)][-1])),
+    Stat("lidar.rings_with_returns", "rings with returns (of 64)", "",
+         ring_median("lidar.ring_returns", lambda n: np.count_nonzero(n > 0))),
+    Stat("lidar.reflectance_mean", "mean reflectance", "", med("lidar.reflectance_mean")),
+    Stat("lidar.reflectance_zero_share", "share of reflectance exactly 0", "",
+         med("lidar.reflectance_zero")),
+    Stat("lidar.ground_share", f"share of ground returns (within {GROUND_M} m of the road plane)",
+         "", med("lidar.ground_share")),
+    Stat("lidar.car_points_0_20m", "points on a Car at 0-20 m", "", car_points(0, 20)),
+    Stat("lidar.car_points_20_40m", "points on a Car at 20-40 m", "", car_points(20, 40)),
+    Stat("lidar.car_points_40_80m", "points on a Car at 40-80 m", "", car_points(40, 80)),
+    Stat("images.grey_mean", "mean grey level", "", med("images.grey_mean")),
+    Stat("images.saturation_mean", "mean HSV saturation", "", med("images.saturation_mean")),
+    Stat("images.mean_abs_dx", "mean |dI/dx| of the grey image", "grey levels",
+         med("images.mean_abs_dx")),
+    Stat("images.flat_share", "share of flat pixels (|dI/dx| < 1)", "", med("images.flat_share")),
+    Stat("images.edge_density", f"edge density (Canny {CANNY[0]}/{CANNY[1]})", "",
+         med("images.edge_density")),
+    Stat("images.png_bytes", "PNG file size", "bytes", med("images.png_bytes")),
+    Stat("labels.objects_per_frame", "objects per frame (not DontCare)", "", med("labels.objects")),
+    Stat("labels.cars_per_frame", "Cars per frame", "", med("labels.cars")),
+    Stat("labels.distance_m", "object distance (ground x-z)", "m", med("labels.distance_m")),
+    Stat("labels.fully_visible_share", "share of objects with occlusion 0", "",
+         lambda d: _share(d.get("labels.occlusion"), lambda v: v == 0)),
+    Stat("labels.truncated_share", "share of objects with truncation > 0", "",
+         lambda d: _share(d.get("labels.truncation"), lambda v: v > 0)),
+    Stat("labels.box_height_px", "2D box height", "px", med("labels.box_height_px")),
+    Stat("labels.proj_gap_px", "2D box vs projected 3D box, max side gap", "px",
+         med("labels.proj_gap_px")),
+    Stat("labels.proj_within_1px_share", "share of objects with that gap within 1 px", "",
+         lambda d: _share(d.get("labels.proj_gap_px"), lambda v: v <= 1.0)),
+)
+STAT_KEYS = frozenset(s.key for s in STATS)

@@ -1,0 +1,81 @@
+"""One streaming pass over a dataset root: chunks of frame ids go to worker processes, each
+returns only its accumulators, and a frame that cannot be read is skipped with its error."""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+
+from kitti.dataset import KittiDataset
+from kitti.errors import KittiFormatError
+from kitti.jobs import Backend, InProcess
+
+from .images import image_stats, read_image
+from .labels import label_stats
+from .lidar import lidar_stats
+from .stats import Acc, DatasetStats, merge
+
+MAX_CHUNK = 32
+
+
+@dataclass(frozen=True)
+class ChunkJob:
+    """A few consecutive frame ids of one root, and which optional groups it has."""
+
+    root: str
+    ids: tuple[str, ...]
+    lidar: bool
+    labels: bool
+
+
+def run_chunk(job: ChunkJob) -> Acc:
+    """Worker: read every frame in full first, so a bad file leaves no partial values behind."""
+    threads = cv2.getNumThreads()
+    cv2.setNumThreads(1)  # one core per worker process: the pool fills the machine
+    try:
+        ds = KittiDataset(job.root)
+        acc = Acc()
+        for fid in job.ids:
+            try:
+                img, nbytes = read_image(ds.image_path(fid))
+                calib = ds.calib(fid) if job.lidar or job.labels else None
+                scan = ds.velodyne(fid) if job.lidar else None
+                labels = ds.labels(fid) if job.labels else None
+                if job.lidar and scan is None:
+                    raise KittiFormatError("no such file", ds.path("velodyne", fid, "bin"))
+            except (KittiFormatError, OSError) as e:
+                acc.skipped.append((fid, str(e)))
+                continue
+            acc.frames.append(fid)
+            image_stats(acc, img, nbytes)
+            if scan is not None:
+                lidar_stats(acc, scan, calib, labels)
+            if labels is not None:
+                label_stats(acc, labels, calib, (img.shape[1], img.shape[0]))
+        return acc
+    finally:
+        cv2.setNumThreads(threads)
+
+
+def compute_stats(root: str | Path, split: str | None = None, frames: int | None = None,
+                  backend: Backend | None = None) -> DatasetStats:
+    """Statistics of the first `frames` ids of `split` (default: every frame with an image), with
+    the chunks mapped on `backend` (default: in this process)."""
+    ds = KittiDataset(root)
+    ids = ds.ids(split)[:frames]
+    groups = {"images": True, "lidar": (ds.dir / "velodyne").is_dir(),
+              "labels": (ds.dir / "label_2").is_dir()}
+    backend = backend or InProcess()
+    workers = getattr(backend, "workers", None) or 2
+    size = max(1, min(MAX_CHUNK, math.ceil(len(ids) / (4 * workers))))
+    jobs = [ChunkJob(str(root), tuple(ids[i:i + size]), groups["lidar"], groups["labels"])
+            for i in range(0, len(ids), size)]
+    parts = backend.map(run_chunk, jobs, desc=f"fidelity {Path(root).name}")
+    stats = merge(str(root), split, groups, parts)
+    for fid, err in stats.skipped:
+        warnings.warn(f"fidelity: skipping frame {fid} of {root}: {err}", stacklevel=2)
+    return stats

@@ -1,0 +1,75 @@
+"""LiDAR statistics of one sweep, from the .bin alone (plus calib and labels for the road plane
+and the points on each Car), so a real scan and a generated one are measured the same way."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from kitti.boxes import points_in_boxes
+from kitti.calib import Calibration
+from kitti.labels import Object3D
+from kitti.rings import recover_rings
+from lifter.ground import fit_ground_plane, height_above
+from lifter.points import rowdot
+
+from .stats import Acc
+
+RINGS = 64
+GROUND_M = 0.2  # a return this close to the fitted road plane is ground
+FAR_M = (40.0, 80.0)
+PERCENTILES = (10, 50, 90, 99)
+
+
+def lidar_stats(acc: Acc, scan: np.ndarray, calib: Calibration,
+                labels: list[Object3D] | None) -> None:
+    """Per-frame values and pooled histograms of one (N, 4) scan."""
+    pts = scan[:, :3].astype(np.float64)
+    refl = scan[:, 3]
+    acc.put("lidar.points", len(pts))
+    if not len(pts):
+        return
+    r = np.sqrt(np.einsum("ij,ij->i", pts, pts))
+    for q, v in zip(PERCENTILES, np.percentile(r, PERCENTILES)):
+        acc.put(f"lidar.range_p{q}_m", v)
+    for far in FAR_M:
+        acc.put(f"lidar.beyond_{far:.0f}m", np.count_nonzero(r > far) / len(r))
+    acc.hist("lidar.range_m", r)
+    acc.put("lidar.reflectance_mean", refl.mean(dtype=np.float64))
+    acc.put("lidar.reflectance_zero", np.count_nonzero(refl == 0) / len(refl))
+    acc.hist("lidar.reflectance", refl)
+    _rings(acc, pts)
+    rect = _velo_to_rect(pts, calib)
+    height = height_above(rect, fit_ground_plane(rect))
+    acc.put("lidar.ground_share", np.count_nonzero(np.abs(height) < GROUND_M) / len(pts))
+    if labels is not None:
+        _car_points(acc, rect, [o for o in labels if o.type == "Car"])
+
+
+def _rings(acc: Acc, pts: np.ndarray) -> None:
+    """Returns and median elevation (degrees) per recovered ring, 0 = top."""
+    ring, method = recover_rings(pts, RINGS)
+    el = np.degrees(np.arctan2(pts[:, 2], np.hypot(pts[:, 0], pts[:, 1])))
+    counts = np.bincount(ring, minlength=RINGS)[:RINGS]
+    per_ring = np.split(el[np.argsort(ring, kind="stable")], np.cumsum(counts)[:-1])
+    acc.row("lidar.ring_returns", counts)
+    acc.row("lidar.ring_elevation_deg", [np.median(e) if len(e) else np.nan for e in per_ring])
+    acc.put("lidar.ring_by_azimuth", method == "azimuth-wrap")
+
+
+def _velo_to_rect(pts: np.ndarray, calib: Calibration) -> np.ndarray:
+    """Column by column: an (N,3)@(3,3) BLAS call costs more in thread start-up than arithmetic."""
+    m = calib.velo_to_rect
+    return np.stack([rowdot(pts, m[k, :3]) + m[k, 3] for k in range(3)], axis=1)
+
+
+def _car_points(acc: Acc, rect: np.ndarray, cars: list[Object3D]) -> None:
+    """Returns inside each Car's 3D box, against its ground (x-z) distance."""
+    x, z = np.ascontiguousarray(rect[:, 0]), np.ascontiguousarray(rect[:, 2])
+    counts = []
+    for o in cars:
+        b = o.box7
+        reach = np.hypot(b[4], b[5]) / 2  # a cheap square around the box first
+        near = np.flatnonzero((np.abs(x - b[0]) <= reach) & (np.abs(z - b[2]) <= reach))
+        counts.append(np.count_nonzero(points_in_boxes(rect[near], b)[0]))
+    acc.put("lidar.car_points", counts)
+    acc.put("lidar.car_distance_m", [np.hypot(o.location[0], o.location[2]) for o in cars])

@@ -1,0 +1,141 @@
+"""report.md and fidelity.json of a Comparison: the same numbers, for reading and for tools.
+No timestamps and sorted, fixed layouts, so the same inputs give the same bytes."""
+
+from __future__ import annotations
+
+import json
+import math
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from kitti.io import atomic_write_text
+
+from .compare import Comparison, Row
+from .images import CANNY
+from .labels import CLASSES
+from .lidar import GROUND_M
+from .stats import DatasetStats
+
+GROUPS = (("lidar", "LiDAR", "velodyne/"), ("images", "Images", "image_2/"),
+          ("labels", "Labels", "label_2/"))
+
+NOTES = f"""\
+## How the numbers are measured
+
+- Per-frame values are summarised by their median over frames; per-object values (distance, 2D
+  height, projection gap, points on a Car) by their median over objects. Histograms pool all frames.
+- Range is sqrt(x^2 + y^2 + z^2) of the .bin points. Rings come from `kitti.rings.recover_rings(points, 64)`
+  for both datasets; a ring's elevation is the median of atan2(z, sqrt(x^2 + y^2)) of its points.
+- Ground returns: within {GROUND_M} m of the road plane fitted by RANSAC to the low returns
+  (`lifter.ground.fit_ground_plane`, rectified camera frame).
+- Points on a Car: .bin points inside the label's 3D box (velo -> rect with the frame's calib).
+- Images are read with cv2; grey is cv2's BGR2GRAY; dI/dx is the forward difference along x;
+  gradient magnitude is sqrt(dx^2 + dy^2) of forward differences; edges are Canny with thresholds
+  {CANNY[0]} and {CANNY[1]}.
+- Objects are every label but DontCare. Projection gap: the label's 3D box corners projected with
+  P2 and clipped to the image, max |side difference| against its 2D box.
+- Relative difference = (sim - real) / |real|; a statistic passes when its magnitude is at most the
+  tolerance.
+"""
+
+
+def _num(x: float | None) -> float | None:
+    return None if x is None or not math.isfinite(x) else float(f"{x:.6g}")
+
+
+def _fmt(x: float) -> str:
+    if not math.isfinite(x):
+        return "n/a"
+    return f"{x:,.0f}" if abs(x) >= 1000 else f"{x:.4g}"
+
+
+def _table(rows: list[Row]) -> list[str]:
+    out = ["| statistic | sim | real | relative difference | verdict |", "|---|---:|---:|---:|---|"]
+    for r in rows:
+        label = (f"{r.label} ({r.unit})" if r.unit else r.label).replace("|", "\\|")
+        rel = "n/a" if r.rel_diff is None or math.isnan(r.rel_diff) else f"{r.rel_diff:+.1%}"
+        verdict = {"fail": "**fail**"}.get(r.verdict, r.verdict)
+        out.append(f"| {label} `{r.key}` | {_fmt(r.sim)} | {_fmt(r.real)} | {rel} | "
+                   f"{verdict} (±{r.tolerance:.0%}) |")
+    return out
+
+
+def _side(d: DatasetStats) -> dict:
+    return {"root": d.root, "split": d.split, "frames_read": len(d.frames),
+            "frames_skipped": [{"id": fid, "error": err} for fid, err in d.skipped],
+            "groups": d.groups}
+
+
+def _per_ring(d: DatasetStats, key: str) -> list[float | None] | None:
+    if key not in d.rows:
+        return None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return [_num(v) for v in np.nanmedian(d.rows[key], axis=0)]
+
+
+def to_json(comp: Comparison) -> dict:
+    sides = {"sim": comp.sim, "real": comp.real}
+    return {
+        **{name: _side(d) for name, d in sides.items()},
+        "tolerances": comp.tolerances.model_dump(),
+        "statistics": {r.key: {"label": r.label, "unit": r.unit, "sim": _num(r.sim),
+                               "real": _num(r.real), "rel_diff": _num(r.rel_diff),
+                               "tolerance": r.tolerance, "verdict": r.verdict} for r in comp.rows},
+        "histograms": {key: {"edges": [_num(e) for e in comp.sim.hists[key].edges],
+                             **{n: [_num(c) for c in d.hists[key].normalised()]
+                                for n, d in sides.items()}} for key in comp.sim.hists},
+        "rings": {k: {n: _per_ring(d, f"lidar.ring_{k}") for n, d in sides.items()}
+                  for k in ("returns", "elevation_deg")},
+        "objects_per_frame_by_class": {
+            n: (dict(zip(CLASSES, (_num(v) for v in d.rows["labels.class_counts"].mean(axis=0))))
+                if "labels.class_counts" in d.rows else None) for n, d in sides.items()},
+    }
+
+
+def _header(comp: Comparison) -> list[str]:
+    sim, real = comp.sim, comp.real
+    counts = {v: sum(r.verdict == v for r in comp.rows) for v in ("pass", "fail", "n/a")}
+    skipped = [f"- {n} {fid}: {err}" for n, d in (("sim", sim), ("real", real))
+               for fid, err in d.skipped]
+    return [
+        "# Fidelity: sim vs real", "",
+        "| | sim | real |", "|---|---|---|",
+        f"| root | `{sim.root}` | `{real.root}` |",
+        f"| split | {sim.split or 'every frame with an image'} | "
+        f"{real.split or 'every frame with an image'} |",
+        f"| frames read | {len(sim.frames)} | {len(real.frames)} |", "",
+        f"Verdicts: {counts['pass']} pass, {counts['fail']} fail, {counts['n/a']} n/a "
+        f"(relative tolerance, default ±{comp.tolerances.default:.0%}).", "",
+        f"frames skipped: {len(sim.skipped) + len(real.skipped)}", *skipped, ""]
+
+
+def _group(comp: Comparison, group: str, title: str, folder: str) -> list[str]:
+    out = [f"## {title}", ""]
+    for name, d in (("sim", comp.sim), ("real", comp.real)):
+        if not d.groups[group]:
+            out += [f"{title}: absent in {name} (no {folder}).", ""]
+    if group == "lidar":
+        share = {n: np.mean(d.get("lidar.ring_by_azimuth")) if len(d.get("lidar.ring_by_azimuth"))
+                 else float("nan") for n, d in (("sim", comp.sim), ("real", comp.real))}
+        out += [f"Rings recovered from azimuth wraps in {_fmt(100 * share['sim'])} % of sim frames "
+                f"and {_fmt(100 * share['real'])} % of real frames (the rest by elevation k-means).", ""]
+    rows = [r for r in comp.rows if r.key.startswith(group + ".")]
+    return out + _table(rows) + ["", f"![{group}]({group}.png)", ""]
+
+
+def write_report(comp: Comparison, out_dir: str | Path) -> None:
+    """report.md, fidelity.json, lidar.png, images.png, labels.png in out_dir."""
+    from .plots import write_plots
+
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    write_plots(comp, out_dir)
+    atomic_write_text(out_dir / "fidelity.json",
+                      json.dumps(to_json(comp), indent=1, allow_nan=False) + "\n")
+    lines = _header(comp)
+    for group, title, folder in GROUPS:
+        lines += _group(comp, group, title, folder)
+    atomic_write_text(out_dir / "report.md", "\n".join(lines + [NOTES]))

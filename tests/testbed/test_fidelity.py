@@ -1,0 +1,190 @@
+"""`testbed fidelity`: the report's numbers against values computed by hand on a real KITTI frame,
+generated frames against real ones, skipped corrupt frames, absent groups, the tolerance file."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import imageio.v3 as iio
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from kitti.calib import read_calib
+from kitti.labels import read_label
+from simgen.generate import generate
+from simgen.spec import load_spec
+from testbed.cmd_fidelity import fidelity
+from testbed.fidelity import ToleranceError, Tolerances, compare, compute_stats, load_tolerances, write_report
+from testbed.fidelity.catalog import STAT_KEYS
+from testbed.fidelity.compare import verdict
+
+ROOT = Path(__file__).resolve().parents[2]
+REAL = ROOT.parent / "shared" / "kitti_real_dev"  # the real dev frames beside the repository
+
+
+@pytest.fixture(scope="module")
+def real_root() -> Path:
+    if not (REAL / "training").is_dir():
+        pytest.skip(f"real KITTI frames not found at {REAL}")
+    return REAL
+
+
+@pytest.fixture(scope="module")
+def sim_root(tmp_path_factory) -> Path:
+    root = tmp_path_factory.mktemp("sim") / "street"
+    generate(load_spec(ROOT / "scenes/golden/street.yaml"), root, frames=2)
+    return root
+
+
+@pytest.fixture(scope="module")
+def sim_vs_real(sim_root, real_root):
+    return compare(compute_stats(sim_root), compute_stats(real_root, frames=4))
+
+
+def _statistics(out: Path) -> dict:
+    return json.loads((out / "fidelity.json").read_text())["statistics"]
+
+
+def _hand_proj_gap(label_path: Path, calib_path: Path, size: tuple[int, int]) -> float:
+    """Max side gap of the frame's single label: 8 corners rotated about y, projected with P2."""
+    (obj,) = [o for o in read_label(label_path) if o.type != "DontCare"]
+    P2 = read_calib(calib_path).P2
+    xs = np.array([1, 1, -1, -1, 1, 1, -1, -1]) * obj.l / 2
+    zs = np.array([1, -1, -1, 1, 1, -1, -1, 1]) * obj.w / 2
+    ys = np.array([0, 0, 0, 0, -1, -1, -1, -1]) * obj.h
+    c, s = np.cos(obj.rotation_y), np.sin(obj.rotation_y)
+    pts = np.stack([c * xs + s * zs, ys, -s * xs + c * zs, np.ones(8)]) + np.r_[obj.location, 0][:, None]
+    uvw = P2 @ pts
+    u, v = uvw[0] / uvw[2], uvw[1] / uvw[2]
+    box = np.array([max(u.min(), 0), max(v.min(), 0), min(u.max(), size[0] - 1),
+                    min(v.max(), size[1] - 1)])
+    return float(np.abs(box - obj.bbox).max())
+
+
+def test_report_numbers_match_a_hand_computation_on_one_real_frame(real_root, tmp_path):
+    stats = compute_stats(real_root, frames=1)
+    assert stats.frames == ["000000"]
+    write_report(compare(stats, stats), tmp_path)
+    got = _statistics(tmp_path)
+    t = real_root / "training"
+    scan = np.fromfile(t / "velodyne/000000.bin", "<f4").reshape(-1, 4)
+    r = np.sqrt((scan[:, :3].astype(np.float64) ** 2).sum(axis=1))
+    rgb = iio.imread(t / "image_2/000000.png")[..., :3].astype(np.float64)
+    grey = np.round(rgb @ [0.299, 0.587, 0.114])  # ITU-R BT.601, as cv2's BGR2GRAY
+    dx = np.abs(np.diff(grey, axis=1))
+    hand = {
+        "lidar.points_per_sweep": (t / "velodyne/000000.bin").stat().st_size / 16,
+        "lidar.beyond_40m_share": np.mean(r > 40),
+        "lidar.range_p50_m": np.median(r),
+        "lidar.reflectance_zero_share": np.mean(scan[:, 3] == 0),
+        "lidar.reflectance_mean": scan[:, 3].astype(np.float64).mean(),
+        "images.png_bytes": (t / "image_2/000000.png").stat().st_size,
+        "images.mean_abs_dx": dx.mean(),
+        "images.flat_share": np.mean(dx < 1),
+        "labels.objects_per_frame": 1,
+        "labels.proj_gap_px": _hand_proj_gap(t / "label_2/000000.txt", t / "calib/000000.txt",
+                                             (rgb.shape[1], rgb.shape[0])),
+    }
+    for key, value in hand.items():
+        rtol = 5e-3 if key.startswith("images.") and key != "images.png_bytes" else 1e-5
+        assert got[key]["real"] == pytest.approx(value, rel=rtol), key
+        assert got[key]["rel_diff"] == 0 and got[key]["verdict"] == "pass"
+    assert got["labels.proj_gap_px"]["real"] == pytest.approx(9.56, abs=0.01)  # a tight pedestrian box
+
+
+def test_sim_against_real_writes_every_number_and_the_same_bytes_twice(sim_vs_real, tmp_path):
+    write_report(sim_vs_real, tmp_path / "a")
+    write_report(sim_vs_real, tmp_path / "b")
+    names = sorted(p.name for p in (tmp_path / "a").iterdir())
+    assert names == ["fidelity.json", "images.png", "labels.png", "lidar.png", "report.md"]
+    for name in names:
+        assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes(), name
+    doc = json.loads((tmp_path / "a/fidelity.json").read_text())
+    assert set(doc["statistics"]) == STAT_KEYS
+    assert doc["sim"]["frames_read"] == 2 and doc["real"]["frames_read"] == 4
+    for key, h in doc["histograms"].items():
+        assert len(h["edges"]) == len(h["sim"]) + 1
+        assert sum(h["sim"]) == pytest.approx(1) and sum(h["real"]) == pytest.approx(1), key
+    assert len(doc["rings"]["returns"]["sim"]) == 64
+    row = doc["statistics"]["lidar.points_per_sweep"]
+    assert row["rel_diff"] == pytest.approx((row["sim"] - row["real"]) / row["real"], rel=1e-3)
+    report = (tmp_path / "a/report.md").read_text()
+    assert "frames skipped: 0" in report and "`lidar.points_per_sweep`" in report
+
+
+@pytest.mark.parametrize("kind", ["png", "bin", "label"])
+def test_an_unreadable_frame_is_skipped_named_and_counted(sim_root, tmp_path, kind):
+    root = tmp_path / "ds"
+    shutil.copytree(sim_root, root)
+    t = root / "training"
+    bad = {"png": t / "image_2/000001.png", "bin": t / "velodyne/000001.bin",
+           "label": t / "label_2/000001.txt"}[kind]
+    if kind == "bin":
+        bad.write_bytes(bad.read_bytes()[:-3])  # truncated: not a multiple of 16
+    elif kind == "png":
+        bad.write_bytes(bad.read_bytes()[:40] + b"\0" * 200)
+    else:
+        bad.write_text("Car 0.0 0 oops\n")
+    with pytest.warns(UserWarning, match=f"000001.*{bad.name}"):
+        stats = compute_stats(root)
+    assert stats.frames == ["000000"]
+    assert [fid for fid, _ in stats.skipped] == ["000001"] and str(bad) in stats.skipped[0][1]
+    write_report(compare(stats, stats), tmp_path / "out")
+    report = (tmp_path / "out/report.md").read_text()
+    assert "frames skipped: 2" in report and f"sim 000001: {bad}" in report  # once per side
+
+
+def test_a_dataset_without_velodyne_or_labels_reports_the_groups_absent(sim_root, tmp_path):
+    root = tmp_path / "ds"
+    shutil.copytree(sim_root, root)
+    shutil.rmtree(root / "training/velodyne")
+    shutil.rmtree(root / "training/label_2")
+    stats = compute_stats(root)
+    assert stats.groups == {"images": True, "lidar": False, "labels": False}
+    comp = compare(stats, compute_stats(sim_root))
+    verdicts = {r.key: r.verdict for r in comp.rows}
+    assert all(v == "n/a" for k, v in verdicts.items() if not k.startswith("images."))
+    assert all(v != "n/a" for k, v in verdicts.items() if k.startswith("images."))
+    write_report(comp, tmp_path / "out")
+    report = (tmp_path / "out/report.md").read_text()
+    assert "LiDAR: absent in sim (no velodyne/)" in report
+    assert "Labels: absent in sim (no label_2/)" in report
+
+
+def test_an_unknown_statistic_in_the_tolerance_file_names_the_file_and_the_key(tmp_path):
+    path = tmp_path / "tol.yaml"
+    path.write_text("default: 0.2\nstatistics:\n  lidar.points_per_sweeep: 0.1\n")
+    with pytest.raises(ToleranceError, match=rf"{path}.*'lidar\.points_per_sweeep'"):
+        load_tolerances(path)
+    path.write_text("defualt: 0.2\n")
+    with pytest.raises(ToleranceError, match=rf"{path}: key 'defualt'"):
+        load_tolerances(path)
+    assert load_tolerances().default == 0.15  # the shipped file validates
+
+
+def test_the_verdict_flips_at_the_tolerance(sim_vs_real):
+    key = "images.png_bytes"
+    sim, real = (getattr(r, side) for r in sim_vs_real.rows if r.key == key for side in ("sim", "real"))
+    rel = abs(sim - real) / real
+    at = compare(sim_vs_real.sim, sim_vs_real.real, Tolerances(statistics={key: rel}))
+    below = compare(sim_vs_real.sim, sim_vs_real.real, Tolerances(statistics={key: rel * 0.999}))
+    assert [r.verdict for r in at.rows if r.key == key] == ["pass"]
+    assert [r.verdict for r in below.rows if r.key == key] == ["fail"]
+    assert verdict(1.15, 1.0, 0.15)[1] == "pass" and verdict(1.1501, 1.0, 0.15)[1] == "fail"
+    assert verdict(0.0, 0.0, 0.15) == (0.0, "pass") and verdict(1.0, 0.0, 0.15) == (None, "fail")
+    assert verdict(float("nan"), 1.0, 0.15)[1] == "n/a"
+
+
+def test_the_command_writes_the_report_and_turns_a_bad_tolerance_file_into_a_message(real_root,
+                                                                                     tmp_path):
+    args = ["--sim", str(real_root), "--real", str(real_root), "--frames", "1", "--workers", "1"]
+    res = CliRunner().invoke(fidelity, [*args, "--out", str(tmp_path / "out")])
+    assert res.exit_code == 0, res.output
+    assert "0 fail" in res.output and (tmp_path / "out/report.md").exists()
+    bad = tmp_path / "tol.yaml"
+    bad.write_text("statistics: {nope: 0.1}\n")
+    res = CliRunner().invoke(fidelity, [*args, "--out", str(tmp_path / "o2"), "--tolerances", str(bad)])
+    assert res.exit_code == 1 and "'nope'" in res.output and str(bad) in res.output
