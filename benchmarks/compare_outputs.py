@@ -96,8 +96,9 @@ def main() -> None:
         head = worktree(args.head, tmp) if args.head else ROOT
         if args.head:
             trees.append(head)
-        a = run_pipeline(base, args.out / "work")
-        b = run_pipeline(head, args.out / "work")
+        work = args.out.resolve() / "work"  # the stages run in each checkout's folder
+        a = run_pipeline(base, work)
+        b = run_pipeline(head, work)
     finally:
         for t in trees:
             subprocess.run(["git", "worktree", "remove", "--force", str(t)], cwd=ROOT,

@@ -27,6 +27,7 @@ from detector.infer import Detector, save_checkpoint
 from detector.loss import DetectionLoss
 from detector.model import PRESETS, FlexiNet, ModelConfig
 from kitti.dataset import KittiDataset
+from kitti.eval.protocol import DIFFICULTIES
 from kitti.io import atomic_write_text
 
 
@@ -156,7 +157,7 @@ def evaluate_model(model: FlexiNet, input_size: tuple[int, int], root: str, spli
 
 
 CSV_FIELDS = ["epoch", "lr", "loss", "box", "obj", "cls", "seconds"] + \
-    [f"{c}_2d_R40_{d}" for c in CLASSES for d in ("easy", "moderate", "hard")]
+    [f"{c}_2d_R40_{d}" for c in CLASSES for d in DIFFICULTIES]
 
 
 def _checkpoints(cfg: TrainConfig, ck_path: Path,
@@ -242,7 +243,7 @@ def _add_ap(row: dict, cfg: TrainConfig, model: FlexiNet, img_size: tuple[int, i
     """Adds the model's 2D AP|R40 per class and difficulty on the validation split to the row."""
     res = evaluate_model(model, img_size, cfg.val_data or cfg.data[0], cfg.val_split)
     for c in CLASSES:
-        for d, v in zip(("easy", "moderate", "hard"), res.ap[c]["2d"]["R40"]):
+        for d, v in zip(DIFFICULTIES, res.ap[c]["2d"]["R40"]):
             row[f"{c}_2d_R40_{d}"] = float(v)
 
 

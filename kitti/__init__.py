@@ -1,6 +1,8 @@
 """KITTI formats, frames, box geometry, exact IoU and the official evaluation.
 
-Depends on numpy and scipy only, so it serves real KITTI data as well as the testbed's own.
+Depends on numpy, numba (exact IoU and the evaluation's loops), imageio (images) and tqdm
+(progress bars), never on the simulator or torch, so it serves real KITTI data as well as the
+testbed's own.
 """
 
 from .boxes import (alpha_from_rotation_y, box_corners, points_in_boxes, project_boxes,

@@ -20,7 +20,7 @@ from .volumetric import DEFAULT_MAX_DISTANCE
 def _progress(items: list, on: bool, desc: str):
     if not on:
         return items
-    from tqdm import tqdm  # only for the command line; kitti itself needs numpy/scipy/numba
+    from tqdm import tqdm  # only when a progress bar is asked for
     return tqdm(items, desc=desc, leave=False)
 
 
