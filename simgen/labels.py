@@ -3,8 +3,11 @@
 Per actor:
 - silhouette: the union of its parts' projections (cut at a 5 cm near plane), an exact polygon
   in image_2 pixels (pixel centres at integer coordinates, as in KITTI);
-- 2D box: the bounds of the silhouette clipped to the image [-0.5, W-0.5] x [-0.5, H-0.5],
-  then clamped to pixel indices [0, W-1] x [0, H-1];
+- 2D box, as KITTI's: the projection of the 3D box (its 8 corners; a box reaching behind the
+  camera is cut at the near plane first) clipped to the image [-0.5, W-0.5] x [-0.5, H-0.5], then
+  clamped to pixel indices [0, W-1] x [0, H-1]. KITTI's 2D boxes are this projection (on the real
+  dev frames their sides lie within about 1 px of it, occluded or not), which is a little larger
+  than the mesh's silhouette; the silhouette's own box goes to meta/ as `silhouette_bbox`;
 - truncation: the share of the silhouette's area outside the image (the mesh, not the box); an
   object reaching behind the camera plane projects without bound, so its truncation is ~1;
 - visible share: the actor's instance-mask pixels over the area of its silhouette inside the
@@ -43,13 +46,14 @@ class ActorTruth:
     cls: str
     box7: np.ndarray  # [x, y, z, h, w, l, ry] in rect camera-0 coords
     in_view: bool
-    bbox: np.ndarray | None  # (4,) clipped 2D box, None when out of view
+    bbox: np.ndarray | None  # (4,) clipped 2D box (the projected 3D box), None when out of view
     truncation: float
     visible_px: int
     visible_share: float
     distance: float
     label: str  # "label", "dontcare", "hidden" or "out_of_view"
     occluded: int = -1
+    silhouette_bbox: np.ndarray | None = None  # (4,) clipped box of the mesh's silhouette
 
 
 def _clip_near(tri: np.ndarray) -> list[np.ndarray]:
@@ -123,6 +127,27 @@ def silhouette(actor: Actor, cam_from_world: np.ndarray, K: np.ndarray) -> shape
     return shapely.union_all(geoms) if geoms else None
 
 
+_BOX_CORNERS = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], float)
+_BOX_EDGES = np.array([[a, b] for a in range(8) for b in range(a + 1, 8)
+                       if bin(a ^ b).count("1") == 1])  # the 12 edges: corners differing in one axis
+
+
+def box_outline(lo: np.ndarray, hi: np.ndarray, cam_from_actor: np.ndarray,
+                K: np.ndarray) -> shapely.Geometry | None:
+    """Image outline of the actor's 3D box (its extent lo..hi in its own frame)."""
+    corners = lo + _BOX_CORNERS * (hi - lo)
+    v = corners @ cam_from_actor[:3, :3].T + cam_from_actor[:3, 3]
+    if v[:, 2].max() < NEAR:
+        return None
+    return _convex_part_outline(v, _BOX_EDGES, K)
+
+
+def _clipped_bounds(outline: shapely.Geometry, image: shapely.Geometry, W: int,
+                    H: int) -> np.ndarray:
+    x1, y1, x2, y2 = outline.intersection(image).bounds
+    return np.array([max(x1, 0.0), max(y1, 0.0), min(x2, W - 1.0), min(y2, H - 1.0)])
+
+
 def derive(world: World, instance: np.ndarray, rules: LabelRules) -> tuple[list[Object3D], list[ActorTruth]]:
     """Label rows (objects first, DontCare after) and the per-actor truth of one frame."""
     rig = world.rig
@@ -149,12 +174,13 @@ def derive(world: World, instance: np.ndarray, rules: LabelRules) -> tuple[list[
             truths.append(ActorTruth(actor.id, actor.cls, box7, False, None, 1.0, 0, 0.0, dist,
                                      "out_of_view"))
             continue
-        x1, y1, x2, y2 = inside.bounds
-        bbox = np.array([max(x1, 0.0), max(y1, 0.0), min(x2, W - 1.0), min(y2, H - 1.0)])
+        sil_bbox = _clipped_bounds(inside, image, W, H)
+        bbox = _clipped_bounds(box_outline(lo, hi, cam @ actor.pose, K), image, W, H)
         trunc = float(np.clip(1.0 - inside.area / sil.area, 0.0, 1.0))
         vis_px = int(counts[actor.id]) if actor.id < len(counts) else 0
         share = float(min(1.0, vis_px / inside.area))
-        t = ActorTruth(actor.id, actor.cls, box7, True, bbox, trunc, vis_px, share, dist, "label")
+        t = ActorTruth(actor.id, actor.cls, box7, True, bbox, trunc, vis_px, share, dist, "label",
+                       silhouette_bbox=sil_bbox)
         truths.append(t)
         if vis_px == 0:
             t.label = "hidden"

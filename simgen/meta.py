@@ -46,6 +46,8 @@ def world_to_meta(world: World, spec: dict | None = None, truths: list[ActorTrut
         if t is not None:
             row.update({"box7": t.box7.tolist(), "in_view": t.in_view,
                         "bbox": None if t.bbox is None else t.bbox.tolist(),
+                        "silhouette_bbox": (None if t.silhouette_bbox is None
+                                            else t.silhouette_bbox.tolist()),
                         "truncation": t.truncation, "visible_px": t.visible_px,
                         "visible_share": t.visible_share, "occluded": t.occluded,
                         "distance": t.distance, "label": t.label})

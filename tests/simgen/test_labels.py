@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from kitti.boxes import alpha_from_rotation_y, box_corners, wrap_angle
+from kitti.boxes import alpha_from_rotation_y, box_corners, project_boxes, wrap_angle
 from simgen.labels import derive
 from simgen.meshes import build_actor_parts
 from simgen.render import render
@@ -54,13 +54,19 @@ def _label(world, actor_id=1, rules=RULES):
 
 
 @pytest.mark.parametrize("x,y,yaw", [(20.0, 1.0, 0.4), (12.0, -3.0, -1.2), (35.0, 4.0, 2.5)])
-def test_lone_car_mask_box_equals_label_box_and_corners_enclose_it(x, y, yaw):
+def test_lone_car_label_box_is_the_projected_3d_box_and_the_mask_box_its_silhouette(x, y, yaw):
     world = world_of([(CAR, pose(x, y, yaw))])
     out, rows, t = _label(world)
     (row,) = rows
     assert row.type == "Car" and row.occluded == 0 and row.truncated == 0.0
+    size = (world.rig.width, world.rig.height)
+    np.testing.assert_allclose(row.bbox, project_boxes(row.box7[None], world.rig.calib, size)[0],
+                               atol=1e-6)  # KITTI's convention, exactly
     mb = mask_box(out.instance, 1)
-    np.testing.assert_allclose(row.bbox, mb, atol=1.0)
+    np.testing.assert_allclose(t.silhouette_bbox, mb, atol=1.0)
+    # the silhouette lies inside the box's projection: the label box is the larger one
+    assert np.all(row.bbox[:2] <= t.silhouette_bbox[:2] + 1e-9)
+    assert np.all(row.bbox[2:] >= t.silhouette_bbox[2:] - 1e-9)
     assert t.visible_share > 0.95
     uv, depth = world.rig.calib.rect_to_image(box_corners(row.box7[None])[0])
     assert np.all(depth > 0)
@@ -174,7 +180,10 @@ def test_user_mesh_actor_is_labelled_from_its_own_geometry(tmp_path):
     assert len(world.actors[0].parts) == len(build_actor_parts(recipe)) == 1
     out, (row,), t = _label(world)
     assert row.type == "Misc" and (row.h, row.w, row.l) == pytest.approx((2.0, 1.0, 4.0))
-    np.testing.assert_allclose(row.bbox, mask_box(out.instance, 1), atol=1.0)
+    np.testing.assert_allclose(t.silhouette_bbox, mask_box(out.instance, 1), atol=1.0)
+    size = (world.rig.width, world.rig.height)
+    np.testing.assert_allclose(row.bbox, project_boxes(row.box7[None], world.rig.calib, size)[0],
+                               atol=1e-6)
     assert t.visible_share > 0.95 and row.occluded == 0
 
 
@@ -184,4 +193,4 @@ def test_car_beside_the_camera_is_cut_at_the_near_plane_and_truncated():
     (row,) = rows
     # Cut at a 5 cm near plane, the part beside the camera projects far outside the image.
     assert t.truncation > 0.9 and row.bbox[2] == world.rig.width - 1
-    np.testing.assert_allclose(row.bbox, mask_box(out.instance, 1), atol=1.0)
+    np.testing.assert_allclose(t.silhouette_bbox, mask_box(out.instance, 1), atol=1.0)
