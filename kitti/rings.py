@@ -2,9 +2,13 @@
 of a real KITTI scan that has no side file.
 
 Recovery. KITTI .bin points are stored laser by laser, each laser one revolution in firing
-order, so within a ring the azimuth atan2(y, x) moves steadily one way and it jumps back by
-about 2 pi where the next ring starts. Rings are the runs between those jumps, numbered from
-the top by their median elevation; a laser whose revolution does not start exactly at the back
+order, so within a ring the azimuth moves steadily one way and it jumps back by about 2 pi where
+the next ring starts. Where a revolution starts (the seam) depends on the recording: KITTI's
+start at the front (azimuth 0, where the camera is triggered), the simulator's at the back (pi).
+Cut at the wrong seam, every laser's revolution splits in two and each run joins the second half
+of one laser to the first half of the next (65 runs for 64 lasers, their elevations mixed), so
+the seam is the one of {back, front} that gives exactly one run per laser. Rings are the runs
+between those jumps, numbered from the top by their median elevation; a laser whose revolution does not start exactly at the back
 wraps inside its own ring, and the few points that end up on the wrong side of a jump rejoin
 the ring they share an elevation with. When the jumps do not give exactly the expected ring count
 (an empty ring, a ring cut at the back), rings come from 1-D k-means on the elevation angle
@@ -44,12 +48,18 @@ def elevation(points: np.ndarray) -> np.ndarray:
     return np.arctan2(points[:, 2], np.hypot(points[:, 0], points[:, 1]))
 
 
-def rings_from_azimuth_wraps(points: np.ndarray, jitter_deg: float = 0.25) -> np.ndarray:
-    """Run index per point: a new run starts wherever the azimuth wraps (jumps by more than
-    pi either way) or steps back against the rotation by more than `jitter_deg`."""
+SEAMS = ("back", "front")  # where a revolution may start: azimuth pi (simulator), 0 (KITTI)
+
+
+def rings_from_azimuth_wraps(points: np.ndarray, jitter_deg: float = 0.25,
+                             seam: str = "back") -> np.ndarray:
+    """Run index per point: a new run starts wherever the azimuth wraps at the seam (jumps by
+    more than pi either way) or steps back against the rotation by more than `jitter_deg`."""
     if len(points) < 2:
         return np.zeros(len(points), np.int64)
-    az = np.arctan2(points[:, 1], points[:, 0])
+    az = np.arctan2(points[:, 1], points[:, 0])  # (-pi, pi]: wraps at the back
+    if seam == "front":
+        az = np.mod(az, 2 * np.pi)  # [0, 2 pi): wraps at the front
     d = np.diff(az)
     small = d[np.abs(d) < np.pi]
     direction = np.sign(np.median(small)) if len(small) else 1.0
@@ -102,13 +112,11 @@ def merge_short_runs(runs: np.ndarray, el: np.ndarray, share: float = 0.05) -> n
 def recover_rings(points: np.ndarray, beams: int = 64) -> tuple[np.ndarray, str]:
     """Ring per point (0 = top) of a KITTI-ordered scan, and the method that found it."""
     el = elevation(points)
-    if len(points):
-        runs = merge_short_runs(rings_from_azimuth_wraps(points), el)
-    else:
-        runs = np.zeros(0, np.int64)
-    if len(points) and runs.max() + 1 == beams:
-        med = np.array([np.median(el[runs == k]) for k in range(beams)])
-        rank = np.empty(beams, np.int64)
-        rank[np.argsort(-med)] = np.arange(beams)
-        return rank[runs].astype(np.uint8), "azimuth-wrap"
+    for seam in SEAMS if len(points) else ():
+        runs = merge_short_runs(rings_from_azimuth_wraps(points, seam=seam), el)
+        if runs.max() + 1 == beams:
+            med = np.array([np.median(el[runs == k]) for k in range(beams)])
+            rank = np.empty(beams, np.int64)
+            rank[np.argsort(-med)] = np.arange(beams)
+            return rank[runs].astype(np.uint8), "azimuth-wrap"
     return rings_from_elevation(points, beams).astype(np.uint8), "elevation-kmeans"

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -11,6 +13,9 @@ from kitti.velodyne import read_velodyne
 from kitti.velodyne_info import info_path, read_scan_info, velodyne_path
 from simgen.lidar import preset, read_scan, scan, write_scan
 from tests.simgen.lidar.street import street_world
+
+
+REAL_KITTI = Path(__file__).resolve().parents[3] / "shared" / "kitti_real_dev"
 
 
 @pytest.fixture(scope="module")
@@ -76,6 +81,38 @@ def test_ring_recovery_survives_rings_that_start_past_the_back(hdl64_scan):
     assert bad.mean() < 1e-3
     assert np.all(np.abs(s.azimuth[order][bad]) > np.deg2rad(160))
     assert np.all(np.abs(ring[bad].astype(int) - s.ring[order][bad]) == 1)
+
+
+def test_ring_recovery_finds_revolutions_that_start_at_the_front(hdl64_scan):
+    """KITTI's revolutions start at the front (azimuth 0), the simulator's at the back: cut at the
+    back, every laser would split in two and each run mix two lasers (65 runs)."""
+    s = hdl64_scan
+    order = []
+    for ring in range(64):
+        ix = np.flatnonzero(s.ring == ring)
+        front = np.flatnonzero(np.abs(np.diff(np.mod(s.azimuth[ix], 2 * np.pi))) > np.pi)
+        assert len(front) == 1  # one pass through the front per revolution
+        order.append(np.roll(ix, -int(front[0] + 1)))
+    order = np.concatenate(order)
+    assert len(order) == len(s)
+    ring, method = recover_rings(s.points[order], 64)
+    assert method == "azimuth-wrap"
+    assert np.array_equal(ring, s.ring[order])
+
+
+@pytest.mark.skipif(not REAL_KITTI.is_dir(), reason=f"real KITTI dev frames not found at {REAL_KITTI}")
+def test_real_kitti_scans_give_64_rings_from_their_point_order():
+    files = sorted((REAL_KITTI / "training" / "velodyne").glob("*.bin"))
+    assert len(files) == 11
+    for f in files:
+        pts = read_velodyne(f)
+        ring, method = recover_rings(pts, 64)
+        assert method == "azimuth-wrap", f
+        el = np.degrees(np.arctan2(pts[:, 2], np.hypot(pts[:, 0], pts[:, 1])))
+        med = np.array([np.median(el[ring == k]) for k in range(64)])
+        assert np.all(np.diff(med) < 0), f  # one laser per ring, top to bottom
+        assert 1.5 < med[0] < 4.5 and -24.5 < med[-1] < -22.5, f  # the HDL-64E's +2 / -24.9 deg
+        assert np.bincount(ring, minlength=64).min() > 500, f
 
 
 def test_ring_recovery_falls_back_to_elevation_clustering():
