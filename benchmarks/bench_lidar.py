@@ -2,10 +2,12 @@
 
 For 16, 32, 64 (hdl64e) and 128 beams on sampled scenes/urban.yaml worlds: the best-of-N wall
 time of (a) one bare `EmbreeScene.run(origins, dirs, output=1)` of the sweep's rays and (b) one
-full `scan` (ego motion, actor motion, noise, per-laser bias, intensity, detection threshold,
-drop-out); the Embree scene build is timed apart (it is shared by both and by every sensor of
-a sweep over beams). Then the KITTI-likeness of default hdl64e sweeps: points, range profile,
-reflectance, and the same under fog and rain.
+full `scan` (the rays that pass glass and leaves cast again, ego and actor motion, echo
+strength, detection threshold, per-laser drop-out, noise and bias, the reflectance channel with
+per-laser gains and zero shares, scatter, floors and quantisation); the Embree scene build is
+timed apart (it is shared by both and by every sensor of a sweep over beams). Then the
+KITTI-likeness of default hdl64e sweeps: points, range profile, reflectance, and the same under
+fog and rain.
 Usage: .venv/bin/python benchmarks/bench_lidar.py [--frames N] [--repeats R]
 """
 

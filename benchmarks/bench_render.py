@@ -1,8 +1,8 @@
 """Camera rendering speed and complete-frame throughput of the scene generator.
 
-Prints (1) the render time per 1242x375 frame of scenes/urban.yaml, split into scene build,
-colour pass (4x MSAA) and segmentation+depth pass, the look (fog/rain/sensor) and the label
-derivation; (2) complete frames per second (sample + render + labels + all files, no LiDAR,
+Prints (1) the world sampling time (scenery and actor meshes) and the render time per 1242x375
+frame of scenes/urban.yaml, split into scene build, colour pass (4x MSAA) and
+segmentation+depth pass, the look (fog/rain/sensor) and the label derivation; (2) complete frames per second (sample + render + labels + all files, no LiDAR,
 and with the spec's LiDAR) of `simgen.generate` with 1 and 2 worker processes.
 
     .venv/bin/python benchmarks/bench_render.py [--frames N] [--spec scenes/urban.yaml]
@@ -30,7 +30,9 @@ from testbed.backends import LocalBackend
 
 
 def render_breakdown(spec, n: int) -> None:
+    t0 = time.perf_counter()
     worlds = [sample_world(spec, spec.seed, i) for i in range(n)]
+    sample_ms = 1000 * (time.perf_counter() - t0) / n
     r = renderer(worlds[0].rig.width, worlds[0].rig.height)
     scene, _, flags = build_scene(worlds[0])  # warm-up: shaders compile on the first render
     r.render(scene, flags=flags)
@@ -55,6 +57,7 @@ def render_breakdown(spec, n: int) -> None:
     actors = np.mean([len(w.actors) for w in worlds])
     print(f"{spec.name}: {n} frames of {worlds[0].rig.width}x{worlds[0].rig.height}, "
           f"{actors:.0f} actors per world on average")
+    print(f"  {'sample':10s} {sample_ms:7.1f} ms mean (simgen.sample_world: scenery and actor meshes)")
     for k, v in t.items():
         print(f"  {k:10s} {np.median(v):7.1f} ms median  {np.mean(v):7.1f} ms mean")
     render = np.array(t["build"]) + np.array(t["colour"]) + np.array(t["seg+depth"])

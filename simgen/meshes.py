@@ -12,6 +12,9 @@ import numpy as np
 import trimesh
 from scipy.spatial import ConvexHull
 
+# The vehicle materials at 905 nm and their sources: simgen.materials.
+from .materials import (FRAME, GLASS, HEADLIGHT, PLATE, TAILLIGHT, TYRE, paint_material,
+                        skin_reflectivity, textile_reflectivity)
 from .usermesh import build_user_parts
 from .world import Material, Part, fit_parts
 
@@ -36,21 +39,14 @@ _CLOTHES = np.array([[0.05, 0.05, 0.08], [0.10, 0.15, 0.35], [0.45, 0.05, 0.05],
                      [0.60, 0.55, 0.45], [0.08, 0.25, 0.10], [0.70, 0.70, 0.70]])
 _SKIN = np.array([[0.80, 0.60, 0.48], [0.55, 0.38, 0.27], [0.30, 0.19, 0.13]])
 
-GLASS = Material("glass", (0.04, 0.05, 0.07), 0.08)
-TYRE = Material("tyre", (0.02, 0.02, 0.02), 0.04)
-PLATE = Material("plate", (0.90, 0.90, 0.85), 0.90)  # retro-reflective
-HEADLIGHT = Material("headlight", (0.95, 0.95, 0.90), 0.60)
-TAILLIGHT = Material("taillight", (0.60, 0.02, 0.02), 0.50)
-FRAME = Material("bike_frame", (0.15, 0.15, 0.17), 0.30)
-
 # The emissive look of lamp materials at night (renderer): name -> linear RGB emission.
 EMISSIVE = {"headlight": (4.0, 4.0, 3.6), "taillight": (2.5, 0.05, 0.05)}
 
 
 def paint(color) -> Material:
-    """Car paint: LiDAR reflectivity rises with the paint's brightness (white ~0.6, black ~0.2)."""
-    c = tuple(float(v) for v in color)
-    return Material("paint", c, round(0.2 + 0.45 * float(np.mean(c)), 4))
+    """Car paint: Lambertian, its 905 nm reflectance from the colour (simgen.materials: carbon
+    black darkens the NIR too, chromatic pigments do not; black about 0.07, white about 0.73)."""
+    return paint_material("paint", color)
 
 
 def hull(points) -> trimesh.Trimesh:
@@ -160,8 +156,7 @@ def _truck(rng, c: Material) -> list[Part]:
     front = 0.5
     cab = box(front - cab_len, front, -0.5, 0.5, 0.12, 0.92)
     shield = box(front - 0.004, front + 0.004, -0.44, 0.44, 0.60, 0.86)
-    cargo_color = Material("paint", tuple(float(v) for v in rng.uniform(0.5, 0.95, 3)),
-                           0.5)
+    cargo_color = paint(rng.uniform(0.5, 0.95, 3))
     cargo = box(-0.5, front - cab_len - 0.02, -0.5, 0.5, 0.14, 1.0)
     chassis = box(-0.48, front - 0.02, -0.35, 0.35, 0.08, 0.16)
     r = 0.11
@@ -232,14 +227,16 @@ def _person(rng, clothes: Material, skin: Material, stride: float, lean: float =
 
 
 def _pedestrian(rng, c: Material) -> list[Part]:
-    skin = Material("skin", tuple(float(v) for v in _SKIN[rng.integers(len(_SKIN))]), 0.45)
-    clothes = Material("clothes", c.color, 0.30)
+    tone = tuple(float(v) for v in _SKIN[rng.integers(len(_SKIN))])
+    skin = Material("skin", tone, skin_reflectivity(tone))
+    clothes = Material("clothes", c.color, textile_reflectivity(c.color))
     return _person(rng, clothes, skin, stride=rng.uniform(0.1, 0.5), lean=rng.uniform(0, 0.03))
 
 
 def _cyclist(rng, c: Material) -> list[Part]:
-    skin = Material("skin", tuple(float(v) for v in _SKIN[rng.integers(len(_SKIN))]), 0.45)
-    clothes = Material("clothes", c.color, 0.30)
+    tone = tuple(float(v) for v in _SKIN[rng.integers(len(_SKIN))])
+    skin = Material("skin", tone, skin_reflectivity(tone))
+    clothes = Material("clothes", c.color, textile_reflectivity(c.color))
     r = 0.19  # wheel radius relative to the rider's height
     xf, xb = 0.48, -0.48
     parts = [Part(wheel(x, 0.0, r, 0.03, sections=16), TYRE) for x in (xf, xb)]

@@ -3,7 +3,8 @@
 Actors stand on the road (z = 0) or the sidewalk (z = curb height), face along their lane with a
 small spread, and never overlap each other, the ego vehicle or static obstacles (footprints
 tested as oriented rectangles with a safety margin; tree crowns only against actors tall enough
-to reach them).
+to reach them). With `clutter.frontage`, cars also stand in car-park stalls (paved at curb
+height, across the road), and side streets keep their mouths free of parked cars and walkers.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ from .factors import factor_rng
 from .meshes import build_actor_parts, sample_recipe
 from .rigs import KITTI_LIDAR_HEIGHT, CameraRig, gantry_rig, onboard_rig, orbit_rig
 from .road import RoadLayout
-from .scenery import Obstacle, build_scenery
+from .scenery import Frontage, Obstacle, build_scenery, plan_frontage
 from .spec import SceneSpec
 from .usermesh import user_recipe
 from .world import Actor, Light, Weather, World
@@ -132,8 +133,8 @@ class _Traffic:
     the steps' order (and the draws' order within each) is part of the seed's meaning."""
 
     def __init__(self, spec: SceneSpec, v: dict, road: RoadLayout, obstacles: list[Obstacle],
-                 rng: np.random.Generator):
-        self.spec, self.road, self.rng = spec, road, rng
+                 rng: np.random.Generator, frontage: Frontage | None = None):
+        self.spec, self.road, self.rng, self.frontage = spec, road, rng, frontage
         self.speed = float(v["traffic.speed"])
         self.sd_yaw = np.radians(float(v["traffic.heading_sd_deg"]))
         self.sd_lat = float(v["traffic.lateral_sd"])
@@ -215,7 +216,8 @@ class _Traffic:
             while s < self.s_hi:
                 cls = _pick_class({"Car": 0.85, "Van": 0.15}, rng)
                 recipe = _recipe(cls, self.spec, rng)
-                if road.in_cross_street(s, recipe["dims"][2] / 2 + 3.0):  # keep the corners free
+                if road.in_cross_street(s, recipe["dims"][2] / 2 + 3.0) or self._in_mouth(
+                        side, s, recipe["dims"][2] / 2 + 1.0):  # keep the corners free
                     s += recipe["dims"][2] + 0.8 + rng.exponential(100.0 / dens)
                     continue
                 w = recipe["dims"][1]
@@ -223,6 +225,25 @@ class _Traffic:
                 yaw = (0.0 if side < 0 else np.pi) + rng.normal(0, self.sd_yaw)
                 self.add(cls, recipe, road.pose(s, d, 0.0, yaw))
                 s += recipe["dims"][2] + 0.8 + rng.exponential(100.0 / dens)
+
+    def _in_mouth(self, side: int, s: float, margin: float) -> bool:
+        return self.frontage is not None and self.frontage.in_mouth(side, s, margin)
+
+    def car_parks(self, occupancy: float) -> None:
+        """Parked cars in the car parks' stalls (clutter.frontage), nose in or out, each stall
+        taken with probability `occupancy`."""
+        if self.frontage is None or not occupancy > 0:
+            return
+        rng = self.rng
+        for stall in self.frontage.stalls:
+            if rng.uniform() >= occupancy:
+                continue
+            cls = _pick_class({"Car": 0.85, "Van": 0.15}, rng)
+            recipe = _recipe(cls, self.spec, rng)
+            yaw = rng.choice([0.0, np.pi]) + rng.normal(0, self.sd_yaw)
+            turn = np.eye(4)
+            turn[:2, :2] = [[np.cos(yaw), -np.sin(yaw)], [np.sin(yaw), np.cos(yaw)]]
+            self.add(cls, recipe, stall @ turn)
 
     def pedestrians(self, dens: float) -> None:
         """Pedestrians on both sidewalks, walking either way."""
@@ -232,8 +253,8 @@ class _Traffic:
             for s in rng.uniform(s_lo, s_hi, rng.poisson(dens * (s_hi - s_lo) / 100.0)):
                 recipe = _recipe("Pedestrian", self.spec, rng)
                 d = curb + side * rng.uniform(0.4, max(0.5, road.sidewalk_width - 0.4))
-                if road.in_cross_street(s, 0.5):  # the sidewalk stops at the cross street
-                    continue
+                if road.in_cross_street(s, 0.5) or self._in_mouth(side, s, 0.5):
+                    continue  # the sidewalk stops at the cross street and at side streets
                 yaw = rng.choice([0.0, np.pi]) + rng.normal(0, 0.4)
                 self.add("Pedestrian", recipe, road.pose(s, d, road.curb_height, yaw), rng.uniform(0.8, 1.6))
 
@@ -252,14 +273,15 @@ class _Traffic:
 
 
 def _place_actors(spec: SceneSpec, v: dict, road: RoadLayout, obstacles: list[Obstacle],
-                  rng: np.random.Generator) -> list[Actor]:
+                  rng: np.random.Generator, frontage: Frontage | None = None) -> list[Actor]:
     """Every actor of the frame, in the fixed order that makes the seed reproducible."""
-    traffic = _Traffic(spec, v, road, obstacles, rng)
+    traffic = _Traffic(spec, v, road, obstacles, rng, frontage)
     traffic.moving(float(v["traffic.vehicles_per_100m"]))
     traffic.crossing(float(v["traffic.vehicles_per_100m"]))
     traffic.parked(float(v["traffic.parked_per_100m"]))
     traffic.pedestrians(float(v["traffic.pedestrians_per_100m"]))
     traffic.cyclists(float(v["traffic.cyclists_per_100m"]))
+    traffic.car_parks(float(v["traffic.car_park_occupancy"]))
     return traffic.actors
 
 
@@ -269,7 +291,8 @@ def sample_world(spec: SceneSpec, seed: int, frame_index: int) -> World:
     road = _road_layout(spec, v)
     scenery = _scenery_params(spec, v, road, seed, frame_index)
     static, obstacles = build_scenery(scenery)
-    actors = _place_actors(spec, v, road, obstacles, factor_rng(seed, frame_index, "actors"))
+    actors = _place_actors(spec, v, road, obstacles, factor_rng(seed, frame_index, "actors"),
+                           plan_frontage(scenery))
     rig = _make_rig(spec, v, road, actors)
     ego_velocity = np.array([float(v["rig.ego_speed"]), 0.0, 0.0]) if rig.kind == "onboard" else np.zeros(3)
     light = Light(v["light.time"], float(v["light.sun_intensity"]),

@@ -5,26 +5,19 @@ part per material so the renderer and the LiDAR see few large meshes.
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
 import shapely
 import trimesh
 
+# The scenery's materials at 905 nm and their sources: simgen.materials.
+from .materials import (ASPHALT, BARK, CONCRETE, FACADE_REFLECTIVITY, FENCE, FOLIAGE,  # noqa: F401
+                        FOREST_FLOOR, MARKING, METAL, SAND, SIDEWALK, VERGE)
 from .road import RoadLayout
 from .world import Material, Part
 
-ASPHALT = Material("asphalt", (0.09, 0.09, 0.10), 0.10)
-MARKING = Material("marking", (0.85, 0.85, 0.82), 0.60)
-CONCRETE = Material("curb", (0.45, 0.45, 0.43), 0.35)
-SIDEWALK = Material("sidewalk", (0.32, 0.31, 0.30), 0.30)
-VERGE = Material("verge", (0.14, 0.20, 0.08), 0.40)  # grass
-FOREST_FLOOR = Material("forest_floor", (0.09, 0.07, 0.04), 0.30)
-SAND = Material("sand", (0.62, 0.52, 0.36), 0.50)
-BARK = Material("bark", (0.12, 0.08, 0.05), 0.20)
-FOLIAGE = Material("foliage", (0.08, 0.20, 0.06), 0.45)
-METAL = Material("pole", (0.30, 0.31, 0.33), 0.40)
-FENCE = Material("fence", (0.35, 0.30, 0.25), 0.30)
 _FACADES = [(0.55, 0.50, 0.42), (0.40, 0.30, 0.25), (0.60, 0.58, 0.55), (0.35, 0.36, 0.40),
             (0.65, 0.55, 0.40), (0.30, 0.25, 0.22)]
 # 003's scene types: the ground beside the road, whether buildings may stand, the tree density
@@ -95,11 +88,11 @@ def _spans(road: RoadLayout, margin: float) -> list[tuple[float, float]]:
     return [(lo, hi) for lo, hi in ((road.s_min, a), (b, road.s_max)) if hi > lo]
 
 
-def _cross_street(road: RoadLayout, add) -> shapely.Polygon:
-    """Asphalt, curbs, sidewalks and markings of the cross street; returns the band to keep free
-    of buildings, trees and poles."""
+def _cross_street(road: RoadLayout, add, far: float | None = None) -> shapely.Polygon:
+    """Asphalt, curbs, sidewalks and markings of the cross street out to `far` beyond each curb
+    (default: the verge's far edge); returns the band to keep free of buildings, trees and poles."""
     cx, hw, sw, ch = road.cross_s, road.cross_half_width, road.sidewalk_width, road.curb_height
-    far = VERGE_WIDTH + sw
+    far = VERGE_WIDTH + sw if far is None else far
     for y0, y1, walk in ((road.right_curb - far, road.right_curb, road.right_curb - sw),
                          (road.left_curb, road.left_curb + far, road.left_curb + sw)):
         add(ASPHALT, _rect(cx - hw, cx + hw, y0, y1, 0.0))
@@ -189,7 +182,7 @@ def _buildings(road: RoadLayout, side: int, outer: float, setback: float, rng: n
         sb += length + rng.choice([0.0, rng.uniform(2.0, 10.0)])
         if out.blocks(m):
             continue
-        out.add(Material("facade", _FACADES[int(rng.integers(len(_FACADES)))], 0.35), m)
+        out.add(Material("facade", _FACADES[int(rng.integers(len(_FACADES)))], FACADE_REFLECTIVITY), m)
         out.obstacles.append(Obstacle(_footprint(m)))
 
 
@@ -240,17 +233,503 @@ def _poles(road: RoadLayout, side: int, curb: float, spacing: float, rng: np.ran
         out.obstacles.append(Obstacle(_footprint(pole).buffer(0.1)))
 
 
+# --- Frontage (clutter.frontage): lots of several kinds behind each sidewalk --------------------
+# The first street model stands one row of buildings `building_setback` behind each sidewalk: a
+# closed box to the LiDAR (urban range p90 19 m against 24.5 m in real KITTI, 0.9 % of returns
+# beyond 40 m against 2.7 %). With `clutter.frontage` each side is a sequence of lots, cut by side
+# streets. The figures are German rules, guidelines and plans (KITTI was recorded in Karlsruhe,
+# Baden-Wuerttemberg); where no published figure was found the comment says so.
+#
+# A lot is part of one block side. Block sides of gridded cities are 60-200 m and blocks 60-100 m
+# deep, measured between street centre lines (Portland 80 x 80 m, Houston 100 x 100, Sacramento
+# 120 x 120, Calgary 100 x 170, Edmonton 60 x 171; Wikipedia "City block"); one block side often
+# holds more than one use, so a lot is 30-120 m long. Side streets: `side_streets_per_100m`.
+LOT_LENGTH = (30.0, 120.0)
+BLOCK_DEPTH = (60.0, 100.0)  # centre line of this street to that of the next, parallel one
+LAND_DEPTH = 100.0  # m of land behind each sidewalk: a block and a half (VERGE_WIDTH without frontage)
+SIDE_STREET_GAP = 20.0  # m of frontage at least between two side streets, or one and the cross street
+# Detached houses. LBO BW section 5: a building keeps 0.4 x its wall height, at least 2.5 m, from
+# every plot boundary. Footprints of one- and two-family houses: 8-14 m a side (no survey found;
+# 100-200 m2 of floor on two storeys). Height of the box, between eaves and ridge: 6-11 m (ridge
+# limits of 11 m are typical, e.g. Lalendorf B-plan No. 5).
+HOUSE_LENGTH = (8.0, 14.0)
+HOUSE_DEPTH = (8.0, 12.0)
+HOUSE_HEIGHT = (6.0, 11.0)
+BOUNDARY_MIN, BOUNDARY_SHARE = 2.5, 0.4
+PLOT_SLACK = (0.0, 6.0)  # m of plot frontage beyond the LBO minimum: no survey found
+# Front yards: building lines 3-5 m behind the street line (Lalendorf B-plan No. 5), 6-7 m where
+# carports stand in front of the house (hausbau-forum.de on B-plans).
+FRONT_YARD = (3.0, 7.0)
+# Front-yard boundaries along the sidewalk: hedges planted at 1.0-1.5 m and kept at most 1.8 m
+# (Hamburg B-plans; Nachbarrecht, Sennestadt design guide), fences and walls at most 1.2 m
+# (Sennestadt design guide). No survey of their shares was found: hedge, fence, wall and none
+# equally often. A gap of 3 m (path or drive) in each plot's boundary.
+HEDGE_HEIGHT, HEDGE_DEPTH = (1.0, 1.8), (0.6, 1.0)
+FENCE_HEIGHT = (0.8, 1.2)
+WALL_HEIGHT = (0.5, 1.2)
+BOUNDARIES = ("hedge", "fence", "wall", "none")
+DRIVE_GAP = 3.0
+# Side and rear plot boundaries: hedge, fence or wall, equally often (no survey found); the rear
+# one 5-15 m behind the house (gardens: no survey found). LBO BW section 37: one parking space
+# per dwelling; LBO BW section 6: garages up to 3 m high may stand in the boundary distance.
+# Garage or open stall equally often (no survey found); a prefabricated single garage is 3 x 6 m;
+# GaVO: 5 m of apron before its door.
+BACK_GARDEN = (5.0, 15.0)
+GARAGE, GARAGE_HEIGHT, GARAGE_APRON = (3.0, 6.0), (2.5, 3.0), 5.0
+# Planting (Hamburg B-plans' requirements): at least one small-crowned tree per 150 m2 of unbuilt
+# plot area, taken as the mean for gardens; one tree and three shrubs per 50 m2 of front yard,
+# one plan's requirement where other front yards are lawn or paved: a lot gets a share U(0, 1).
+YARD_M2_PER_TREE, YARD_SHRUBS_PER_TREE, GARDEN_M2_PER_TREE = 50.0, 3.0, 150.0
+SHRUB_RADIUS = (0.5, 1.2)
+# Open land: a mown lawn or a meadow, equally often (no survey found). Urban meadows are mown
+# once or twice a year, the last cut from September on (Berlin Strassen- und Gruenflaechenamt;
+# Bayerischer Rundfunk garden guide: end of September / October), so on KITTI's drives (26
+# September - 3 October 2011) they stood near full height: 0.3-1.0 m. Park trees: at least one
+# large-crowned tree per 300 m2 of unbuilt land (Hamburg B-plans' requirement), taken as the mean.
+MEADOW_HEIGHT = (0.3, 1.0)
+PARK_M2_PER_TREE = 300.0
+# Trees (GALK street tree list: the common street trees grow 8-20 m tall with crowns 4-12 m
+# wide; small-crowned garden trees 4-10 m tall, 3-6 m wide). Clearance under crowns: 2.5 m over
+# footways, 4.5 m over the carriageway (Lichtraumprofil, RASt 06).
+TREE_HEIGHT, CROWN_RADIUS = (8.0, 18.0), (2.0, 5.0)
+SMALL_TREE_HEIGHT, SMALL_CROWN_RADIUS = (4.0, 10.0), (1.5, 3.0)
+CLEAR_FOOTWAY, CLEAR_ROAD = 2.5, 4.5
+# Garden trees branch lower: nursery grades of fruit and garden trees have clear stems of 1.0-1.6 m
+# (half-standard) to 1.8-2.0 m (standard).
+GARDEN_CROWN_BASE = (1.0, 2.0)
+# Car parks (EAR 05): perpendicular stalls 2.50 x 5.00 m, aisles 6.00 m; a module is two stall
+# rows about an aisle, 1-2 modules deep, a 1.5 m planting strip before, between and after them
+# with one small- to medium-crowned tree per 4-5 stalls (Hamburg and Reinbek B-plans); a store
+# behind, one storey of 5-8 m (no survey found).
+STALL_W, STALL_L, AISLE, PLANTING = 2.5, 5.0, 6.0, 1.5
+STALLS_PER_TREE = 4.5
+STORE_HEIGHT, STORE_DEPTH = (5.0, 8.0), (20.0, 40.0)
+# Closed rows keep the first street model's buildings: 8-30 m long, 8-16 m deep, 5-20 m high.
+ROW_LENGTH, ROW_DEPTH, ROW_HEIGHT = (8.0, 30.0), (8.0, 16.0), (5.0, 20.0)
+
+
+@dataclass(frozen=True)
+class Lot:
+    """One stretch [s0, s1] of one side (-1 right, +1 left) given to one kind of lot; a car
+    park's paved depth behind the sidewalk in `depth`."""
+
+    side: int
+    s0: float
+    s1: float
+    kind: str
+    depth: float = 0.0
+
+
+@dataclass
+class Frontage:
+    """The plan of the lots, side streets and car-park stalls: what sample.py needs to place
+    actors, and what build_scenery meshes. A pure function of the scenery parameters."""
+
+    lots: list[Lot]
+    mouths: dict[int, list[tuple[float, float]]]  # per side: side streets' carriageways [s0, s1]
+    stalls: list[np.ndarray]  # (4, 4) world poses, stall centre on the paving, x away from the road
+
+    def in_mouth(self, side: int, s: float, margin: float = 0.0) -> bool:
+        """Whether arc length s lies on a side street's carriageway on that side (widened)."""
+        return any(a - margin <= s <= b + margin for a, b in self.mouths[side])
+
+
+def _outer(road: RoadLayout, side: int) -> float:
+    return (road.right_curb if side < 0 else road.left_curb) + side * road.sidewalk_width
+
+
+def _cut(spans: list[tuple[float, float]], a: float, b: float) -> list[tuple[float, float]]:
+    out = []
+    for lo, hi in spans:
+        out += [(x, y) for x, y in ((lo, min(hi, a)), (max(lo, b), hi)) if y > x]
+    return out
+
+
+def plan_frontage(params: dict) -> Frontage | None:
+    """The lots of both sides, or None when the spec keeps the first street model."""
+    clutter = params["clutter"]
+    mix = {k: float(w) for k, w in sorted((clutter.get("frontage") or {}).items()) if w > 0}
+    if not (mix and clutter["buildings"] and ENVIRONMENTS[clutter.get("environment", "city")][1]):
+        return None
+    road = RoadLayout(**params["road"])
+    rng = np.random.default_rng([int(params["seed"]), 1])
+    kinds, p = list(mix), np.array(list(mix.values()))
+    lo, hi = road.s_min - 10.0, road.s_max + 10.0
+    sw, street = road.sidewalk_width, 2.0 * road.lane_width  # side streets: a lane each way
+    lots, mouths, stalls = [], {-1: [], 1: []}, []
+    for side in (-1, 1):
+        taken = [] if road.cross_s is None else [(road.cross_s - road.cross_half_width - sw,
+                                                  road.cross_s + road.cross_half_width + sw)]
+        rate = float(clutter.get("side_streets_per_100m", 0.0))
+        for s in np.sort(rng.uniform(road.s_min + 10.0, road.s_max - 10.0,
+                                     rng.poisson(rate * (road.s_max - road.s_min) / 100.0))):
+            a, b = s - street / 2, s + street / 2
+            if all(b + sw + SIDE_STREET_GAP < t0 or a - sw - SIDE_STREET_GAP > t1 for t0, t1 in taken):
+                mouths[side].append((float(a), float(b)))
+                taken.append((a - sw, b + sw))
+        spans = [(lo, hi)]
+        for a, b in taken:
+            spans = _cut(spans, a, b)
+        for s0, s1 in spans:
+            s = s0
+            while s < s1:
+                end = min(s + rng.uniform(*LOT_LENGTH), s1)
+                if s1 - end < LOT_LENGTH[0] / 2:
+                    end = s1
+                kind = kinds[int(rng.choice(len(kinds), p=p / p.sum()))]
+                lot = Lot(side, float(s), float(end), kind)
+                if kind == "car_park":
+                    lot, lot_stalls = _car_park_plan(road, lot, rng)
+                    stalls += lot_stalls
+                lots.append(lot)
+                s = end
+    return Frontage(lots, mouths, stalls)
+
+
+def _car_park_plan(road: RoadLayout, lot: Lot, rng: np.random.Generator) -> tuple[Lot, list[np.ndarray]]:
+    """1-2 modules of two stall rows about an aisle; the stalls' poses (x away from the road)."""
+    side, outer, k = lot.side, _outer(road, lot.side), road.curvature
+    modules = int(rng.integers(1, 3))
+    module = 2 * STALL_L + AISLE
+    stalls = []
+    for m in range(modules):
+        q0 = PLANTING + m * (module + PLANTING)
+        for q in (q0 + STALL_L / 2, q0 + STALL_L + AISLE + STALL_L / 2):
+            d = outer + side * q
+            pitch = STALL_W / (1.0 - k * d)  # arc length at offset d is (1 - k d) ds
+            for s in np.arange(lot.s0 + 3.0 + pitch / 2, lot.s1 - 3.0 - pitch / 2, pitch):
+                stalls.append(road.pose(float(s), d, road.curb_height, side * np.pi / 2))
+    depth = PLANTING + modules * (module + PLANTING)
+    return Lot(lot.side, lot.s0, lot.s1, lot.kind, depth), stalls
+
+
+# Unit meshes the frontage scales and places by plain vertex arithmetic (thousands per world:
+# trimesh's creation and transform calls cost ~20x more).
+_UNIT_BOX = trimesh.creation.box(extents=[1.0, 1.0, 1.0])
+_UNIT_CYLINDER = trimesh.creation.cylinder(radius=1.0, height=1.0, sections=8)
+_UNIT_SPHERES = {k: trimesh.creation.icosphere(subdivisions=k, radius=1.0) for k in (0, 1)}
+
+
+def _placed(unit: trimesh.Trimesh, scale, at) -> trimesh.Trimesh:
+    return trimesh.Trimesh(unit.vertices * np.asarray(scale) + np.asarray(at), unit.faces, process=False)
+
+
+def _qbox(road: RoadLayout, side: int, s0: float, s1: float, q0: float, q1: float, z: float,
+          h: float) -> trimesh.Trimesh:
+    """A box over [s0, s1] along the road and q0..q1 metres behind the sidewalk of `side`, its
+    long axes along the road's heading at the box's centre."""
+    s, d = (s0 + s1) / 2, _outer(road, side) + side * (q0 + q1) / 2
+    psi = float(road.heading(s))
+    c, sn = np.cos(psi), np.sin(psi)
+    local = _UNIT_BOX.vertices * [s1 - s0, q1 - q0, h]
+    x, y = road.xy(s, d)
+    v = np.c_[x + c * local[:, 0] - sn * local[:, 1], y + sn * local[:, 0] + c * local[:, 1],
+              local[:, 2] + z + h / 2]
+    return trimesh.Trimesh(v, _UNIT_BOX.faces, process=False)
+
+
+def _quad_polygon(road: RoadLayout, s0: float, s1: float, d0: float, d1: float) -> shapely.Polygon:
+    ss = road.samples(s0, s1)
+    return shapely.Polygon(np.concatenate([road.xy(ss, d0), road.xy(ss[::-1], d1)]))
+
+
+def _add_building(out: _Meshes, rng: np.random.Generator, m: trimesh.Trimesh) -> None:
+    if out.blocks(m):
+        return
+    out.add(Material("facade", _FACADES[int(rng.integers(len(_FACADES)))], FACADE_REFLECTIVITY), m)
+    out.obstacles.append(Obstacle(_footprint(m)))
+
+
+def _tree(out: _Meshes, x: float, y: float, z: float, height: float, r: float, base: float,
+          trunk_r: float = 0.2) -> None:
+    """Trunk up to `base` above z, an ellipsoid crown of radius r from base to height."""
+    rz = max(0.5, (height - base) / 2)
+    crown_fp = shapely.Point(x, y).buffer(r, 8)
+    if out.clear and any(crown_fp.intersects(c) for c in out.clear):
+        return
+    out.add(BARK, _placed(_UNIT_CYLINDER, [trunk_r, trunk_r, base + rz], [x, y, z + (base + rz) / 2]))
+    out.add(FOLIAGE, _placed(_UNIT_SPHERES[1], [r, r, rz], [x, y, z + base + rz]))
+    out.obstacles.append(Obstacle(shapely.Point(x, y).buffer(trunk_r + 0.1, 4)))
+    out.obstacles.append(Obstacle(crown_fp, base=z + base))
+
+
+def _shrub(out: _Meshes, x: float, y: float, z: float, r: float) -> None:
+    fp = shapely.Point(x, y).buffer(r, 4)
+    if not (out.clear and any(fp.intersects(c) for c in out.clear)):
+        out.add(FOLIAGE, _placed(_UNIT_SPHERES[0], [r, r, 0.7 * r], [x, y, z + 0.7 * r]))
+        out.obstacles.append(Obstacle(fp))
+
+
+def _small_trees(road: RoadLayout, side: int, s0: float, s1: float, q0: float, q1: float,
+                 n: int, rng: np.random.Generator, out: _Meshes, base: tuple[float, float]) -> None:
+    """n small-crowned trees over [s0, s1] x [q0, q1] behind the sidewalk, crowns from `base`."""
+    outer, ch = _outer(road, side), road.curb_height
+    for _ in range(n):
+        h, r = rng.uniform(*SMALL_TREE_HEIGHT), rng.uniform(*SMALL_CROWN_RADIUS)
+        x, y = road.xy(rng.uniform(s0, s1), outer + side * rng.uniform(q0, q1))
+        _tree(out, x, y, ch, h, r, rng.uniform(*base), 0.12)
+
+
+def _boundary(road: RoadLayout, side: int, s0: float, s1: float, kind: str,
+              rng: np.random.Generator, out: _Meshes) -> None:
+    """A front boundary along the back of the sidewalk over [s0, s1], in pieces of at most 10 m
+    (boxes follow a curved road); nothing when kind is none."""
+    if kind == "none" or s1 - s0 < 0.5:
+        return
+    h, t, mat = _boundary_style(kind, rng)
+    for a, b in _pieces(s0, s1):
+        _add_solid(out, mat, _qbox(road, side, a, b, 0.2, 0.2 + t, road.curb_height, h))
+
+
+def _pieces(s0: float, s1: float, longest: float = 10.0) -> list[tuple[float, float]]:
+    """[s0, s1] cut into equal pieces of at most `longest` metres (boxes follow a curved road)."""
+    cuts = np.linspace(s0, s1, int(np.ceil((s1 - s0) / longest)) + 1)
+    return list(itertools.pairwise(cuts.tolist()))
+
+
+def _boundary_style(kind: str, rng: np.random.Generator) -> tuple[float, float, Material]:
+    """Height, thickness and material of a hedge, fence or wall."""
+    if kind == "hedge":
+        return rng.uniform(*HEDGE_HEIGHT), rng.uniform(*HEDGE_DEPTH), FOLIAGE
+    if kind == "fence":
+        return rng.uniform(*FENCE_HEIGHT), 0.05, FENCE
+    return rng.uniform(*WALL_HEIGHT), 0.25, CONCRETE
+
+
+def _add_solid(out: _Meshes, mat: Material, m: trimesh.Trimesh) -> None:
+    if not out.blocks(m):
+        out.add(mat, m)
+        out.obstacles.append(Obstacle(_footprint(m)))
+
+
+def _house_row(road: RoadLayout, side: int, s0: float, s1: float, q: float,
+               rng: np.random.Generator, out: _Meshes, yard: bool) -> float:
+    """Detached houses whose fronts stand q metres behind the sidewalk over [s0, s1], each on its
+    plot with the LBO's boundary distances; with `yard`, the front boundary and planting.
+    Returns the deepest house's depth."""
+    ch, deepest = road.curb_height, 0.0
+    s = s0
+    while True:
+        length, depth, height = (rng.uniform(*HOUSE_LENGTH), rng.uniform(*HOUSE_DEPTH),
+                                 rng.uniform(*HOUSE_HEIGHT))
+        clear = max(BOUNDARY_MIN, BOUNDARY_SHARE * height)
+        plot = length + 2 * clear + rng.uniform(*PLOT_SLACK)
+        if s + plot > s1:
+            break
+        at = s + clear + rng.uniform(0.0, plot - length - 2 * clear)
+        _add_building(out, rng, _qbox(road, side, at, at + length, q, q + depth, ch, height))
+        deepest = max(deepest, depth)
+        if yard:  # the drive in the wider side gap, a garage at its end or an open stall
+            lo, hi = (s, at) if at - s > s + plot - at - length else (at + length, s + plot)
+            gap = (lo + hi - DRIVE_GAP) / 2
+            if rng.uniform() < 0.5 and hi - lo >= GARAGE[0] + 0.2:
+                q0 = max(q, GARAGE_APRON)
+                _add_building(out, rng, _qbox(road, side, gap, gap + GARAGE[0], q0, q0 + GARAGE[1], ch,
+                                              rng.uniform(*GARAGE_HEIGHT)))
+            kind = BOUNDARIES[int(rng.integers(len(BOUNDARIES)))]
+            _boundary(road, side, s, gap, kind, rng, out)
+            _boundary(road, side, gap + DRIVE_GAP, s + plot, kind, rng, out)
+            # the side boundary (to the previous plot) and the rear one, behind the garden
+            h, t, mat = _boundary_style(BOUNDARIES[int(rng.integers(len(BOUNDARIES) - 1))], rng)
+            rear = q + depth + rng.uniform(*BACK_GARDEN)
+            _add_solid(out, mat, _qbox(road, side, s, s + t, 1.2, rear, ch, h))
+            for a, b in _pieces(s, s + plot):
+                _add_solid(out, mat, _qbox(road, side, a, b, rear, rear + t, ch, h))
+            lam = rng.uniform() * plot * q / YARD_M2_PER_TREE
+            _small_trees(road, side, s + 1.0, s + plot - 1.0, 1.5, q - 1.0, rng.poisson(lam), rng, out,
+                         (CLEAR_FOOTWAY, CLEAR_FOOTWAY))
+            outer = _outer(road, side)
+            for _ in range(rng.poisson(YARD_SHRUBS_PER_TREE * lam)):
+                x, y = road.xy(rng.uniform(s + 0.5, s + plot - 0.5), outer + side * rng.uniform(1.5, q - 0.5))
+                _shrub(out, x, y, ch, rng.uniform(*SHRUB_RADIUS))
+        s += plot
+    return deepest
+
+
+def _closed_row(road: RoadLayout, side: int, s0: float, s1: float, q: float,
+                rng: np.random.Generator, out: _Meshes) -> float:
+    """The first street model's row of buildings over [s0, s1], fronts q behind the sidewalk."""
+    ch, deepest, s = road.curb_height, 0.0, s0
+    while s < s1 - ROW_LENGTH[0] / 2:
+        length = min(rng.uniform(*ROW_LENGTH), s1 - s)
+        depth, height = rng.uniform(*ROW_DEPTH), rng.uniform(*ROW_HEIGHT)
+        _add_building(out, rng, _qbox(road, side, s, s + length, q, q + depth, ch, height))
+        deepest = max(deepest, depth)
+        s += length + rng.choice([0.0, rng.uniform(2.0, 10.0)])
+    return deepest
+
+
+def _across_block(road: RoadLayout, lot: Lot, near: float, rng: np.random.Generator,
+                  out: _Meshes, gardens: bool = True) -> float:
+    """The next street's buildings (their backs to us) across the block, `near` metres behind
+    the sidewalk being the deepest building front here; with `gardens`, gardens with small
+    trees in between. The next street is as wide as this one (centre line to the back of the
+    sidewalk). Returns how far behind the sidewalk that row stands (LAND_DEPTH: none)."""
+    yard2, depth2 = rng.uniform(*FRONT_YARD), rng.uniform(*HOUSE_DEPTH)
+    half = abs(_outer(road, lot.side) - road.divider)
+    q = max(near + 10.0, rng.uniform(*BLOCK_DEPTH) - 2 * half - yard2 - depth2)
+    if q > LAND_DEPTH - HOUSE_DEPTH[0]:
+        return LAND_DEPTH
+    if rng.uniform() < 0.5:
+        _house_row(road, lot.side, lot.s0, lot.s1, q, rng, out, yard=False)
+    else:
+        _closed_row(road, lot.side, lot.s0, lot.s1, q, rng, out)
+    if gardens:
+        lam = (lot.s1 - lot.s0) * (q - near) / GARDEN_M2_PER_TREE
+        _small_trees(road, lot.side, lot.s0, lot.s1, near + 1.0, q - 1.0, rng.poisson(lam), rng, out,
+                     GARDEN_CROWN_BASE)
+    return q
+
+
+def _open_land(road: RoadLayout, lot: Lot, rng: np.random.Generator, out: _Meshes) -> None:
+    """A lawn or a meadow up to the buildings across the block, with park trees."""
+    side, ch = lot.side, road.curb_height
+    far = _across_block(road, lot, 0.0, rng, out, gardens=False)
+    lam = (lot.s1 - lot.s0) * far / PARK_M2_PER_TREE
+    outer = _outer(road, side)
+    for _ in range(rng.poisson(lam)):
+        x, y = road.xy(rng.uniform(lot.s0, lot.s1), outer + side * rng.uniform(2.0, far - 2.0))
+        _tree(out, x, y, ch, rng.uniform(*TREE_HEIGHT), rng.uniform(*CROWN_RADIUS), CLEAR_FOOTWAY, 0.25)
+    s0, s1 = max(lot.s0, road.s_min), min(lot.s1, road.s_max)
+    if rng.uniform() < 0.5 or s1 <= s0:  # a lawn: the ground laid by _frontage_ground
+        return
+    h, ss = ch + rng.uniform(*MEADOW_HEIGHT), road.samples(s0, s1)
+    out.add(FOLIAGE, _strip(road, ss, *sorted((outer + side * 0.5, outer + side * far)), h))
+    face = _strip(road, ss, outer + side * 0.5, outer + side * 0.5, ch, h)
+    out.add(FOLIAGE, _flip(face) if side < 0 else face)
+
+
+def _lot(road: RoadLayout, lot: Lot, setback: float, rng: np.random.Generator, out: _Meshes) -> None:
+    """Everything standing on one lot (its ground is laid by _frontage_ground)."""
+    side, s0, s1, ch = lot.side, lot.s0, lot.s1, road.curb_height
+    if lot.kind == "row":
+        depth = _closed_row(road, side, s0, s1, setback, rng, out)
+        _across_block(road, lot, setback + depth, rng, out)
+    elif lot.kind == "houses":
+        yard = rng.uniform(*FRONT_YARD)
+        depth = _house_row(road, side, s0, s1, yard, rng, out, yard=True)
+        _across_block(road, lot, yard + depth, rng, out)
+    elif lot.kind == "open":
+        _open_land(road, lot, rng, out)
+    else:  # car park: planting strips with trees, a hedge or nothing along the sidewalk, a store
+        n_strips = round((lot.depth - PLANTING) / (2 * STALL_L + AISLE + PLANTING)) + 1
+        outer = _outer(road, side)
+        for i in range(n_strips):
+            q = PLANTING / 2 + i * (2 * STALL_L + AISLE + PLANTING)
+            d = outer + side * q
+            step = STALLS_PER_TREE * STALL_W / (1.0 - road.curvature * d)
+            for s in np.arange(s0 + 3.0 + rng.uniform(0, step), s1 - 3.0, step):
+                x, y = road.xy(s, d)
+                _tree(out, x, y, ch, rng.uniform(*SMALL_TREE_HEIGHT),
+                      rng.uniform(*SMALL_CROWN_RADIUS), CLEAR_FOOTWAY, 0.15)
+        _boundary(road, side, s0 + 3.0, s1 - 3.0, rng.choice(["hedge", "none"]), rng, out)
+        q = lot.depth + rng.uniform(3.0, 10.0)
+        length = (s1 - s0) * rng.uniform(0.4, 0.9)
+        at = s0 + rng.uniform(0.0, s1 - s0 - length)
+        depth = min(rng.uniform(*STORE_DEPTH), LAND_DEPTH - q - 1.0)
+        if depth > 5.0:
+            _add_building(out, rng, _qbox(road, side, at, at + length, q, q + depth, ch,
+                                          rng.uniform(*STORE_HEIGHT)))
+
+
+def _side_street(road: RoadLayout, side: int, a: float, b: float, out: _Meshes) -> None:
+    """A side street's carriageway [a, b] from the road's edge out to the land's far edge, its
+    sidewalks and curbs; the band is kept clear of trees, poles and buildings."""
+    curb = road.right_curb if side < 0 else road.left_curb
+    outer, sw, ch = _outer(road, side), road.sidewalk_width, road.curb_height
+    far = outer + side * LAND_DEPTH
+    d0, d1 = sorted((curb, far))
+    out.add(ASPHALT, _strip(road, road.samples(a, b), d0, d1, 0.0))
+    w0, w1 = sorted((outer, far))
+    out.add(SIDEWALK, _strip(road, road.samples(a - sw, a), w0, w1, ch))
+    out.add(SIDEWALK, _strip(road, road.samples(b, b + sw), w0, w1, ch))
+    for s, facing in ((a, 1.0), (b, -1.0)):  # curb faces towards the carriageway
+        p0, p1 = road.xy(s, d0), road.xy(s, d1)
+        v = np.array([[*p0, ch], [*p1, ch], [*p1, 0.0], [*p0, 0.0]])
+        n = np.cross(v[1] - v[0], v[2] - v[0])
+        t = np.array([np.cos(road.heading(s)), np.sin(road.heading(s)), 0.0]) * facing
+        faces = [[0, 1, 2], [0, 2, 3]] if n @ t > 0 else [[0, 2, 1], [0, 3, 2]]
+        out.add(CONCRETE, trimesh.Trimesh(v, faces, process=False))
+    out.clear.append(_quad_polygon(road, a - 0.5, b + 0.5, d0, d1))
+
+
+def _frontage_ground(road: RoadLayout, plan: Frontage, ground: Material, out: _Meshes) -> None:
+    """Asphalt, the cross street, sidewalks and curbs broken by side streets, and each lot's
+    ground (car parks paved at sidewalk height) out to LAND_DEPTH."""
+    ch, sw = road.curb_height, road.sidewalk_width
+    out.add(ASPHALT, _strip(road, road.samples(road.s_min, road.s_max), road.right_curb, road.left_curb, 0.0))
+    if road.cross_s is not None:
+        out.clear.append(_cross_street(road, out.add, LAND_DEPTH + sw))
+    for side in (-1, 1):
+        curb, outer = (road.right_curb if side < 0 else road.left_curb), _outer(road, side)
+        lo, hi = sorted((curb, outer))
+        spans = _spans(road, 0.0)
+        for a, b in plan.mouths[side]:
+            spans = _cut(spans, a, b)
+            _side_street(road, side, a, b, out)
+        for s0, s1 in spans:
+            ss = road.samples(s0, s1)
+            out.add(SIDEWALK, _strip(road, ss, lo, hi, ch))
+            face = _strip(road, ss, curb, curb, 0.0, ch)
+            out.add(CONCRETE, face if side < 0 else _flip(face))
+    for lot in plan.lots:
+        s0, s1 = max(lot.s0, road.s_min), min(lot.s1, road.s_max)
+        if s1 <= s0:
+            continue
+        ss, outer = road.samples(s0, s1), _outer(road, lot.side)
+        q = 0.0
+        if lot.depth > 0:  # car park paving
+            out.add(ASPHALT, _strip(road, ss, *sorted((outer, outer + lot.side * lot.depth)), ch))
+            q = lot.depth
+        out.add(ground, _strip(road, ss, *sorted((outer + lot.side * q, outer + lot.side * LAND_DEPTH)), ch))
+
+
+def _street_trees(road: RoadLayout, side: int, per_100m: float, rng: np.random.Generator,
+                  out: _Meshes) -> None:
+    """Street trees on the sidewalk, sized as GALK's street trees; crowns reaching over the
+    carriageway start at 4.5 m, others at 2.5 m."""
+    ch, sw = road.curb_height, road.sidewalk_width
+    curb = road.right_curb if side < 0 else road.left_curb
+    inset = min(1.0, sw / 2)
+    for st in np.sort(rng.uniform(road.s_min, road.s_max, rng.poisson(per_100m * (road.s_max - road.s_min) / 100.0))):
+        h, r = rng.uniform(*TREE_HEIGHT), rng.uniform(*CROWN_RADIUS)
+        x, y = road.xy(st, _outer(road, side) - side * inset)
+        over_road = r > abs(_outer(road, side) - side * inset - curb)
+        _tree(out, x, y, ch, h, r, CLEAR_ROAD if over_road else rng.uniform(CLEAR_FOOTWAY, CLEAR_ROAD))
+
+
+def _build_frontage(road: RoadLayout, plan: Frontage, clutter: dict, ground: Material,
+                    seed: int, out: _Meshes) -> None:
+    """The frontage world: ground, lots, street trees, poles (own random streams per part)."""
+    _frontage_ground(road, plan, ground, out)
+    _markings(road, out)
+    rng = np.random.default_rng([seed, 2])
+    for lot in plan.lots:
+        _lot(road, lot, float(clutter["building_setback"]), rng, out)
+    rng = np.random.default_rng([seed, 3])
+    for side in (-1, 1):
+        _street_trees(road, side, clutter["trees_per_100m"], rng, out)
+        if clutter["pole_spacing"] > 0:
+            _poles(road, side, road.right_curb if side < 0 else road.left_curb,
+                   clutter["pole_spacing"], rng, out)
+
+
 def build_scenery(params: dict) -> tuple[list[Part], list[Obstacle]]:
     """Static parts (world frame) and their footprints, from the scenery parameters.
 
     `params["keep_clear"]` (optional): a list of (x, y) polygon vertices where no building, tree
-    or pole may stand, e.g. the line of sight of an orbit camera to its target.
+    or pole may stand, e.g. the line of sight of an orbit camera to its target. With
+    `clutter.frontage` the sides are lots and side streets (plan_frontage), else one closed row.
     """
     road = RoadLayout(**params["road"])
     clutter = params["clutter"]
     ground, buildings, tree_factor, woods = ENVIRONMENTS[clutter.get("environment", "city")]
-    rng = np.random.default_rng(params["seed"])
     out = _Meshes([shapely.Polygon(params["keep_clear"])] if params.get("keep_clear") else [])
+    plan = plan_frontage(params)
+    if plan is not None:
+        _build_frontage(road, plan, clutter, ground, int(params["seed"]), out)
+        return [Part(trimesh.util.concatenate(ms), mat) for mat, ms in out.by_mat.items()], out.obstacles
+    rng = np.random.default_rng(params["seed"])
     _ground(road, ground, out)
     _markings(road, out)
     # Buildings, trees, poles and fences along both sides: one side's draws, then the other's.

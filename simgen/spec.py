@@ -15,6 +15,8 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 from .factors import factor
 
 VEHICLE_CLASSES = ("Car", "Van", "Truck", "Bus")
+# Kinds of lot beside the street (clutter.frontage; simgen.scenery builds them).
+FRONTAGE_KINDS = ("row", "houses", "open", "car_park")
 
 
 class SpecError(ValueError):
@@ -48,10 +50,13 @@ class RoadSpec(Strict):
 class TrafficSpec(Strict):
     vehicles_per_100m: factor(float, 0.0, 30.0) = 2.0  # per moving lane
     mix: dict[str, float] = Field(default_factory=lambda: {"Car": 0.8, "Van": 0.12, "Truck": 0.08})
-    parked_per_100m: factor(float, 0.0, 20.0) = 6.0  # per curb
+    # Per curb: the rate of the exponential gaps between parked cars, so the cars stand on
+    # average (car length + 0.8 m + 100 / rate) apart: rate 8 -> 5.7 cars per 100 m, 25 -> 11.
+    parked_per_100m: factor(float, 0.0, 100.0) = 6.0
     pedestrians_per_100m: factor(float, 0.0, 50.0) = 3.0  # per sidewalk
     cyclists_per_100m: factor(float, 0.0, 20.0) = 0.5  # per direction
     max_distance: factor(float, 10.0, 400.0) = 120.0  # along the road, ahead of the sensor
+    car_park_occupancy: factor(float, 0.0, 1.0) = 0.5  # share of car-park stalls taken (frontage)
     speed: factor(float, 0.0, 40.0) = 12.0  # m/s of moving traffic
     heading_sd_deg: factor(float, 0.0, 30.0) = 2.0
     lateral_sd: factor(float, 0.0, 1.0) = 0.2
@@ -78,6 +83,28 @@ class ClutterSpec(Strict):
     trees_per_100m: factor(float, 0.0, 40.0) = 4.0  # per side
     pole_spacing: factor(float, 0.0, 200.0) = 30.0  # metres; 0 = no poles
     fences: bool = False
+    # What stands behind each sidewalk (simgen.scenery, "Frontage"): the weight of each kind of
+    # lot, drawn lot by lot along each side. row: a closed row of buildings `building_setback`
+    # behind the sidewalk; houses: detached houses behind front yards (hedges, fences, walls,
+    # shrubs), gaps between them, a second row across the block; open: a lawn or a meadow with
+    # park trees, the next street's buildings across the block; car_park: rows of stalls with
+    # parked cars (traffic.car_park_occupancy), trees, a store behind. Empty: the first street
+    # model, one closed row along the whole street. Needs the city environment with buildings on
+    # (elsewhere it is ignored).
+    frontage: dict[str, float] = Field(default_factory=dict)
+    side_streets_per_100m: factor(float, 0.0, 5.0) = 0.0  # T-junctions per side; with frontage
+
+    @field_validator("frontage")
+    @classmethod
+    def _frontage(cls, v: dict[str, float]) -> dict[str, float]:
+        for k, w in v.items():
+            if k not in FRONTAGE_KINDS:
+                raise ValueError(f"unknown lot kind {k!r} (allowed: {list(FRONTAGE_KINDS)})")
+            if w < 0:
+                raise ValueError(f"weight of {k} is negative")
+        if v and sum(v.values()) <= 0:
+            raise ValueError("the weights sum to zero")
+        return v
 
 
 class OnboardRig(Strict):

@@ -20,11 +20,23 @@ import trimesh
 
 @dataclass(frozen=True)
 class Material:
-    """Surface look for the camera and the LiDAR."""
+    """Surface look for the camera and the LiDAR (the 905 nm values and their sources:
+    `simgen.materials`; what the sensor makes of them: `simgen.lidar.scan`)."""
 
     name: str
     color: tuple[float, float, float]  # linear RGB in [0, 1]
-    reflectivity: float  # diffuse reflectivity at the LiDAR wavelength, in [0, 1]
+    # The LiDAR reading at normal incidence: the diffuse reflectivity at 905 nm, in [0, 1]; above 1
+    # for retro-reflectors (pi x their coefficient of retroreflection, which saturates the reading).
+    reflectivity: float
+    # The reading falls as cos(incidence) ** incidence_exponent: 1 Lambertian; 0 for dark rough
+    # ground (Lommel-Seeliger: no fall-off in the backscatter direction) and leaf volumes.
+    incidence_exponent: float = 1.0
+    porosity: float = 0.0  # share of the rays hitting it that pass on (gaps between leaves)
+    # Glass: one-way power transmittance of a pane at normal incidence at 905 nm. > 0 makes the
+    # part a closed glass solid that every beam passes (a pane's own echo is never reported); what
+    # lies behind returns with the two-way loss, and `reflectivity` is the vehicle interior's, for
+    # a beam that ends inside (simgen.lidar.scan).
+    transmittance: float = 0.0
 
 
 @dataclass

@@ -1,15 +1,35 @@
-"""One full 360-degree sweep: one batched Embree query, then vectorised sensor physics.
+"""One full 360-degree sweep: one batched Embree query (and a few small ones for the rays that
+pass glass or leaves), then vectorised sensor physics. No Python loop runs per ray.
 
-Per ray, in order: exact first hit on the world's meshes (Embree, origin moving with the
-ego vehicle), motion correction for hits on moving actors (see target.py), range noise
-(fixed per-laser bias + per-ray Gaussian), received power from reflectivity, incidence and
-distance with weather extinction, the detection threshold, random drop-out, weather echoes
-(weather.py), and the reported reflectance. No Python loop runs per ray.
+Per ray, in order:
+1. the exact first hit on the world's meshes (Embree, origin moving with the ego vehicle);
+2. pass-through (`_pass_through`): a beam that meets glass goes on (a clean pane reflects
+   specularly, away from the sensor, so its own echo is never reported) and the echo from behind
+   loses the pane's two-way transmittance; a beam that meets a porous material (leaves) goes on
+   with probability `porosity`. Those rays are cast again, batched, from PASS_STEP behind the
+   hit, up to MAX_PASSES surfaces; a ray that goes on into nothing returns nothing;
+3. motion correction for hits on moving actors (see target.py);
+4. the echo strength rho_eff = reflectivity * cos(incidence) ** k * (glass losses): the
+   material's reading at its incidence (values and sources: simgen.materials);
+5. detection: rho_eff * exp(-2 beta d) must reach the threshold 0.1 * (d / 50 m) ** gamma
+   (LidarSpec: dark, grazing and far surfaces drop out first), then the laser's own random
+   loss, then range noise (fixed per-laser bias + per-ray Gaussian);
+6. weather echoes (weather.py);
+7. the reported reflectance.
 
-Reported reflectance: the HDL-64E reports range-compensated intensity, so a return reads
-rho * cos(incidence) * exp(-2 beta d), rising as (saturation_range / d)^2 closer than
-saturation_range where the receiver over-reads, clipped to [0, 1] and quantised to 0.01 as
-in KITTI's files (which is why very dark or grazing returns read exactly 0).
+Reported reflectance (constants and the KITTI measurements behind them: LidarSpec). The
+HDL-64E reports a range-compensated intensity: a surface reads about its rho_eff wherever it
+is (KITTI's road reads the same median from 4 to 25 m). A return reads
+    s = g_laser * e * rho_eff * exp(-2 beta d),
+g_laser the laser's gain (log-normal, drawn once per sensor unit: the 64 lasers differ in
+calibrated intensity) and e the per-return scatter (log-logistic). s reads 0 below
+    max(refl_floor, refl_floor_power * 0.1 * (d / 50 m) ** gamma):
+the fixed floor of the lowest readings, and the echo power under which the unit's intensity
+clamps to its minimum (so far returns read 0 or normally, seldom dim: half of KITTI's road reads
+0 at 37 m, 74 % at 40-60 m). The rest is rounded to refl_step (0.01) and capped at refl_max
+(0.99), as KITTI writes it. Near range: no over-read (KITTI's returns within 5 m read 0.99 less
+often than farther ones and have the same nonzero median); KITTI's many zeros within 2.5 m
+(88 %) are not modelled (too few returns there, 0.13 %, to tell the sensor from what it sees).
 """
 
 from __future__ import annotations
@@ -20,12 +40,23 @@ from functools import lru_cache
 import numpy as np
 
 from ..world import World
+from .kernels import detect_rays, pass_apply, pass_candidates, pass_prepare, read_returns
 from .rays import RayTable, ray_table
 from .spec import LidarSpec
 from .target import Target, build_target
 from .weather import clutter, total_extinction
 
 CLUTTER_ID = -1
+# A ray that goes on is cast again from just behind the surface it leaves (float32 positions out
+# to 120 m are good to 10 micrometres, so it cannot meet that surface again).
+PASS_STEP = 1e-3  # m
+# A glass solid whose far side lies closer than this behind the entry is one pane (the meshes'
+# window boxes are 2 to 8 cm thick); a thicker one (a car's glasshouse) has a pane at each side.
+PANE_MAX = 0.1  # m
+MAX_PASSES = 4  # surfaces one ray may go on through: a crown's two faces, two glasshouses
+# Fresnel reflectance of glass at normal incidence, ((n - 1) / (n + 1)) ** 2 for n = 1.52 (soda-lime
+# glass at 905 nm); Schlick's approximation gives its rise towards grazing incidence.
+GLASS_R0 = 0.0426
 
 
 @dataclass
@@ -47,27 +78,6 @@ class LidarScan:
         return {int(i): int(c) for i, c in zip(ids, counts)}
 
 
-def _motion_shift(tgt: Target, slot: np.ndarray, t_ray: np.ndarray, hit_w: np.ndarray,
-                  normal: np.ndarray, d_w: np.ndarray) -> np.ndarray:
-    """Range change that keeps each hit on its moving facet at the ray's own time.
-
-    The hit material point moves by the actor's rigid motion between its placement time and
-    the ray time (delta); the facet plane moves with it, so along the ray the range changes by
-    (n . delta) / (n . d): exact for pure translation, first order in the small yaw.
-    """
-    dt = t_ray - tgt.placed_time[slot]
-    c = tgt.placed_origin[slot]
-    a = tgt.yaw_rate[slot] * dt
-    rel = hit_w - c
-    cos_a, sin_a = np.cos(a), np.sin(a)
-    delta = tgt.velocity[slot] * dt[:, None]
-    delta[:, 0] += (cos_a - 1.0) * rel[:, 0] - sin_a * rel[:, 1]
-    delta[:, 1] += sin_a * rel[:, 0] + (cos_a - 1.0) * rel[:, 1]
-    nd = np.einsum("ij,ij->i", normal, d_w)
-    safe = np.abs(nd) > 1e-3
-    return np.where(safe, np.einsum("ij,ij->i", normal, delta) / np.where(safe, nd, 1.0), 0.0)
-
-
 def _origins(world: World, spec: LidarSpec, rays: RayTable, n: int) -> np.ndarray:
     """(n, 3) ray origins: with motion, one per firing column (moving with the ego vehicle)
     shared by its lasers; else the LiDAR's position for every ray."""
@@ -81,71 +91,77 @@ def _origins(world: World, spec: LidarSpec, rays: RayTable, n: int) -> np.ndarra
     return origins
 
 
-def _first_hits(tgt: Target, spec: LidarSpec, origins: np.ndarray, d_w: np.ndarray,
-                n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The rays that hit (idx), their triangles, ranges and cosines of incidence, and every
-    ray's unnormalised geometric normal (for the motion correction)."""
-    if tgt.n_triangles:
-        res = tgt.scene.run(origins, d_w, dists=spec.max_range + 1.0, output=1)
-        prim, ng = res["primID"], res["Ng"]
-    else:
-        prim, ng = np.full(n, -1, np.int32), np.zeros((n, 3), np.float32)
-    idx = np.flatnonzero(prim >= 0)
-    tri = prim[idx]
-    r = res["tfar"][idx] if tgt.n_triangles else np.zeros(0, np.float32)
-    # incidence from the full-length dot product: cheaper than gathering (N, 3) rows
-    cos_inc = np.einsum("ij,ij->i", ng, d_w)[idx]
-    np.abs(cos_inc, out=cos_inc)
-    cos_inc *= tgt.tri_inv_ng[tri]
-    return idx, tri, r, cos_inc, ng
+def _query(tgt: Target, spec: LidarSpec, origins: np.ndarray, d_w: np.ndarray, n: int
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Every ray's first hit (module docstring, step 1): triangle (-1: none), range and
+    unnormalised geometric normal, one batched Embree query."""
+    if not tgt.n_triangles:
+        return (np.full(n, -1, np.int32), np.full(n, np.inf, np.float32),
+                np.zeros((n, 3), np.float32))
+    res = tgt.scene.run(origins, d_w, dists=spec.max_range + 1.0, output=1)
+    return res["primID"], res["tfar"], res["Ng"]
 
 
-def _correct_motion(tgt: Target, rays: RayTable, origins: np.ndarray, d_w: np.ndarray, ng: np.ndarray,
-                    idx: np.ndarray, tri: np.ndarray, r: np.ndarray) -> None:
-    """Shifts the ranges `r` (in place) of hits on moving actors to each ray's own time;
-    in float64, as the shift is small against the range."""
-    sel = np.flatnonzero(tri >= tgt.first_moving)
-    if len(sel):
-        j = idx[sel]
-        r64 = r[sel].astype(np.float64)
-        d64 = d_w[j].astype(np.float64)
-        hit_w = origins[j] + r64[:, None] * d64
-        r[sel] = r64 + _motion_shift(tgt, tgt.tri_slot[tri[sel]], rays.time[j], hit_w,
-                                     ng[j].astype(np.float64), d64)
+def _pass_through(tgt: Target, spec: LidarSpec, rng: np.random.Generator, origins: np.ndarray,
+                  d_w: np.ndarray, prim: np.ndarray, tfar: np.ndarray, ng: np.ndarray,
+                  cand: np.ndarray) -> np.ndarray | None:
+    """Rays through glass and leaves (module docstring, step 2): at most MAX_PASSES rounds of one
+    batched Embree query of the rays that go on (kernels.pass_prepare, pass_apply). A ray that
+    enters glass leaves the glass solid where its face planes say, so a car's glasshouse costs
+    one query, not two. Updates `prim`, `tfar` and `ng` in place (a ray that goes on into
+    nothing gets prim -1); returns each ray's two-way glass loss (None: no glass met)."""
+    loss = np.ones(len(prim), np.float32)
+    any_glass = False
+    for _ in range(MAX_PASSES):
+        if not len(cand):
+            break
+        any_glass = any_glass or bool(tgt.mat_transmittance[tgt.tri_mat[prim[cand]]].max() > 0)
+        u = rng.random(len(cand), dtype=np.float32)  # one per candidate: part of the seed's meaning
+        sel, o2, d2, start = pass_prepare(cand, u, prim, tfar, ng, origins, d_w, tgt.tri_inv_ng,
+                                          tgt.tri_mat, tgt.mat_transmittance, tgt.mat_porosity,
+                                          tgt.tri_glass, tgt.glass_planes, loss, PANE_MAX, GLASS_R0,
+                                          PASS_STEP)
+        if not len(sel):
+            cand = sel
+            break
+        res = tgt.scene.run(o2, d2, dists=spec.max_range + 1.0, output=1)
+        cand = pass_apply(sel, start, res["primID"], res["tfar"], res["Ng"], prim, tfar, ng,
+                          tgt.tri_passes)
+    prim[cand] = -1  # still going on after MAX_PASSES surfaces: nothing comes back
+    return loss if any_glass else None
 
 
-def _detect(spec: LidarSpec, rng: np.random.Generator, beta: float, idx: np.ndarray, r: np.ndarray,
-            rho_cos: np.ndarray) -> np.ndarray:
-    """Which hits are reported: threshold, drop-out, then range noise added to `r` in place
-    (drop-out draws before noise: the order of draws is part of the seed's meaning)."""
-    if not spec.detection:
-        keep = np.ones(len(r), bool)
-    elif beta > 0:  # on the true range: the echo's power does not see the range noise
-        keep = spec.power(rho_cos, r, beta) >= 1.0
-    else:
-        keep = spec.detected(rho_cos, r)
-    if spec.dropout > 0:
-        keep &= rng.random(len(r), dtype=np.float32) >= spec.dropout
-    if spec.noise_sigma > 0 or spec.bias_sigma > 0:
-        r += _ray_biases(spec)[idx]
-        noise = rng.standard_normal(len(r), dtype=np.float32)
-        noise *= np.float32(spec.noise_sigma)
-        r += noise
-    keep &= (r >= spec.min_range) & (r <= spec.max_range)
-    return keep
+def _detect(spec: LidarSpec, rng: np.random.Generator, beta: float, tgt: Target, rays: RayTable,
+            origins: np.ndarray, d_w: np.ndarray, prim: np.ndarray, tfar: np.ndarray, ng: np.ndarray,
+            loss: np.ndarray | None):
+    """Steps 3-5 of the module docstring (kernels.detect_rays): the kept rays, their true range,
+    rho_eff, detection threshold, actor id and the uniform of the reading's scatter. Draws one
+    uniform per ray (drop-out, then the reading): part of the seed's meaning."""
+    e32 = np.zeros(0, np.float32)
+    need = spec.threshold(tfar)  # on the true range: the echo's power does not see the noise
+    ext = np.exp(np.float32(-2.0 * beta) * tfar) if beta > 0 else e32
+    u = rng.random(len(prim), dtype=np.float32)
+    motion = spec.motion and tgt.first_moving < tgt.n_triangles
+    lasers = _laser_tables(spec)
+    return detect_rays(prim, tfar, ng, d_w, origins, tgt.tri_inv_ng, e32 if loss is None else loss,
+                       tgt.tri_refl, tgt.tri_expo, tgt.tri_actor, need, ext, u, spec.beams,
+                       rays.columns, lasers["dropout"], lasers["zero"], spec.detection,
+                       spec.min_range, spec.max_range, motion, tgt.first_moving, tgt.tri_slot,
+                       rays.time, tgt.placed_time, tgt.placed_origin, tgt.velocity, tgt.yaw_rate,
+                       spec.range_exponent)
 
 
 def _weather_echoes(world: World, spec: LidarSpec, rng: np.random.Generator, n: int, beta: float,
-                    idx: np.ndarray, r: np.ndarray, rho_cos: np.ndarray,
+                    idx: np.ndarray, r: np.ndarray, rho: np.ndarray,
                     aid: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The kept returns with weather echoes that beat them (or hit rays that returned nothing):
     an echo wins where it is nearer and stronger than the ray's own return."""
     full_r = np.full(n, np.inf)
     full_r[idx] = r
     full_p = np.zeros(n)
-    full_p[idx] = spec.power(rho_cos, r, beta)
+    full_p[idx] = spec.power(rho, r, beta)
     full_rc = np.zeros(n, np.float32)
-    full_rc[idx] = rho_cos
+    full_rc[idx] = rho
     full_aid = np.zeros(n, np.int32)
     full_aid[idx] = aid
     c_d, c_rho = clutter(world.weather, n, rng)
@@ -158,17 +174,35 @@ def _weather_echoes(world: World, spec: LidarSpec, rng: np.random.Generator, n: 
     return idx, full_r[idx].astype(np.float32), full_rc[idx], full_aid[idx]
 
 
-def _reflectance(spec: LidarSpec, beta: float, r: np.ndarray, rho_cos: np.ndarray) -> np.ndarray:
-    """The reported reflectance (see the module docstring); may reuse `rho_cos`'s memory."""
-    refl = rho_cos * np.exp(np.float32(-2.0 * beta) * r) if beta > 0 else rho_cos
-    near = np.flatnonzero(r < spec.saturation_range)
-    if len(near):
-        refl[near] *= (np.float32(spec.saturation_range) / r[near]) ** 2
-    np.clip(refl, 0.0, 1.0, out=refl)
-    refl *= np.float32(100.0)
-    np.rint(refl, out=refl)
-    refl /= np.float32(100.0)
-    return refl
+def _read(spec: LidarSpec, rng: np.random.Generator, beta: float, idx: np.ndarray, r: np.ndarray,
+          rho: np.ndarray, need: np.ndarray, v: np.ndarray, rays: RayTable):
+    """Steps 5 (range noise) and 7 (reflectance) of the module docstring (kernels.read_returns):
+    the (N, 4) points and each return's ring, azimuth and time. Draws one normal per return for
+    its range noise (after the uniforms: part of the seed's meaning). `v` (kernels.detect_rays)
+    is -1 where the laser reads 0, else a uniform that picks the reading's scatter from
+    _scatter_quantiles."""
+    f32 = np.float32
+    ext = np.exp(f32(-2.0 * beta) * r) if beta > 0 else np.zeros(0, f32)
+    noisy = spec.noise_sigma > 0 or spec.bias_sigma > 0
+    noise = rng.standard_normal(len(idx), dtype=f32) if noisy else np.zeros(0, f32)
+    lasers = _laser_tables(spec)
+    return read_returns(idx, r, rho, need, v, _scatter_quantiles(spec.reading_sigma), ext, noise,
+                        f32(spec.noise_sigma), lasers["bias"], lasers["gain"],
+                        f32(spec.refl_floor_power), f32(spec.refl_floor), f32(1.0 / spec.refl_step),
+                        f32(round(spec.refl_max / spec.refl_step)), rays.dirs4, rays.ring,
+                        rays.azimuth, rays.time32)
+
+
+@lru_cache(maxsize=8)
+def _scatter_quantiles(sigma: float, n: int = 4096) -> np.ndarray:
+    """The reading's scatter factor, log-logistic whose log has robust sd `sigma` (1.4826 x the
+    median absolute deviation, the statistic measured on KITTI): (v / (1 - v)) ** a for a
+    uniform v, a = sigma / (1.4826 ln 3) (log(v / (1 - v)) has median absolute deviation ln 3),
+    tabulated at the centres of n equal steps of v (a lookup, not a power, per return; the
+    table's steps are 0.02 % of the factor at the median and it spans x0.18 to x5.6 for
+    sigma 0.31)."""
+    v = (np.arange(n) + 0.5) / n
+    return ((v / (1.0 - v)) ** (sigma / (1.4826 * np.log(3.0)))).astype(np.float32)
 
 
 def scan(world: World, spec: LidarSpec, seed: int | np.random.Generator,
@@ -185,23 +219,23 @@ def scan(world: World, spec: LidarSpec, seed: int | np.random.Generator,
 
     d_w = _world_dirs(spec, tuple(world.lidar_pose[:3, :3].ravel().tolist()))
     origins = _origins(world, spec, rays, n)
-    idx, tri, r, cos_inc, ng = _first_hits(tgt, spec, origins, d_w, n)
-    if spec.motion and tri.size and tgt.first_moving < tgt.n_triangles:
-        _correct_motion(tgt, rays, origins, d_w, ng, idx, tri, r)
+    prim, tfar, ng = _query(tgt, spec, origins, d_w, n)
+    loss = None
+    if spec.transmission and tgt.n_triangles:
+        cand = pass_candidates(prim, tgt.tri_passes)
+        if len(cand):
+            loss = _pass_through(tgt, spec, rng, origins, d_w, prim, tfar, ng, cand)
 
     beta = total_extinction(world.weather) if spec.weather else 0.0
-    rho_cos = tgt.tri_refl[tri] * cos_inc
-    keep = _detect(spec, rng, beta, idx, r, rho_cos)
-    aid = tgt.tri_actor[tri]
-    idx, r, rho_cos, aid = idx[keep], r[keep], rho_cos[keep], aid[keep]
+    idx, r, rho, need, aid, v = _detect(spec, rng, beta, tgt, rays, origins, d_w, prim, tfar, ng, loss)
     if spec.weather and (world.weather.fog_extinction > 0 or world.weather.rain_rate > 0):
-        idx, r, rho_cos, aid = _weather_echoes(world, spec, rng, n, beta, idx, r, rho_cos, aid)
-
-    points = np.take(rays.dirs4, idx, axis=0)
-    points *= r[:, None]
-    points[:, 3] = _reflectance(spec, beta, r, rho_cos)
-    return LidarScan(points=points, ring=rays.ring[idx], azimuth=rays.azimuth[idx],
-                     time=rays.time32[idx], actor_id=aid.astype(np.int32, copy=False))
+        kept = np.full(n, -1.0, np.float32)
+        kept[idx] = v
+        idx, r, rho, aid = _weather_echoes(world, spec, rng, n, beta, idx, r, rho, aid)
+        need = spec.threshold(r)
+        v = kept[idx]  # a clutter echo takes its ray's uniform, or reads 0 if the ray had none
+    points, ring, azimuth, time = _read(spec, rng, beta, idx, r, rho, need, v, rays)
+    return LidarScan(points=points, ring=ring, azimuth=azimuth, time=time, actor_id=aid)
 
 
 @lru_cache(maxsize=16)
@@ -217,6 +251,8 @@ def _world_dirs(spec: LidarSpec, rot: tuple[float, ...]) -> np.ndarray:
 
 
 @lru_cache(maxsize=16)
-def _ray_biases(spec: LidarSpec) -> np.ndarray:
-    """Each ray's laser bias, so a scan gathers once instead of twice."""
-    return spec.laser_biases().astype(np.float32)[ray_table(spec).ring]
+def _laser_tables(spec: LidarSpec) -> dict[str, np.ndarray]:
+    """The unit's per-laser values (one per ring, float32), drawn once per spec."""
+    f32 = np.float32
+    return {"bias": spec.laser_biases().astype(f32), "gain": spec.laser_gains().astype(f32),
+            "dropout": spec.laser_dropouts().astype(f32), "zero": spec.laser_zero_shares().astype(f32)}

@@ -28,12 +28,19 @@ class LidarSpec:
     """One sensor model. Rings are numbered from the top beam (ring 0, highest elevation) down,
     the order of KITTI's .bin files.
 
-    Detection follows a lidar equation for an extended Lambertian target,
-    P = rho * cos(incidence) * exp(-2 * beta * d) * (d_ref / d) ** range_exponent, and a return
-    is detected when P >= the power of a 10 % target at normal incidence at `dark_range` in
-    clear air. `range_exponent` is fitted to two datasheet points (rho_bright at bright_range
-    and 10 % at dark_range), so dark, far surfaces vanish first. `max_range` is a hard cut-off
-    on top of that (the sensor reports nothing farther), which range sweeps lower.
+    Detection follows a lidar equation for an extended target,
+    P = rho_eff * exp(-2 * beta * d) * (d_ref / d) ** range_exponent, with rho_eff the surface's
+    reading at its incidence (reflectivity * cos(incidence) ** k for the material's exponent k,
+    times the two-way loss through any glass on the way; see scan.py), and a return is detected
+    when P >= the power of a 10 % target at normal incidence at `dark_range` in clear air.
+    `range_exponent` is fitted to two datasheet points (HDL-64E S2: 50 m on 10 % pavement,
+    120 m on 80 % cars and foliage), so dark, far and grazing surfaces vanish first. `max_range`
+    is a hard cut-off on top of that (the sensor reports nothing farther), which range sweeps lower.
+
+    The reflectance channel (scan.py's module docstring has the model) is KITTI's HDL-64E as
+    measured on the real scans by `benchmarks/lidar_reflectance_stats.py` (every frame of
+    the real set pooled; section numbers below refer to its output). The other presets share
+    these figures: no real scans of theirs are at hand.
     """
 
     name: str
@@ -48,14 +55,53 @@ class LidarSpec:
     mount_xyz: tuple[float, float, float] = (0.0, 0.0, 1.73)
     noise_sigma: float = 0.015  # per-ray Gaussian range noise (m)
     bias_sigma: float = 0.01  # fixed per-laser range bias (m), drawn once per sensor unit
-    unit_seed: int = 0  # the sensor unit: seeds the per-laser biases, constant across frames
+    # the sensor unit: seeds the per-laser biases, gains, zero shares and drop-out rates, constant
+    # across frames
+    unit_seed: int = 0
     lasers: tuple[int, ...] = ()  # the unit's laser number per beam (empty: 0, 1, 2, ...)
-    dropout: float = 0.02  # random loss of a detected return
+    # Random loss of a detected return, mean over the lasers (a value kept from before: on the real
+    # scans the loss cannot be told apart from the ego vehicle hiding the lowest lasers' sectors).
+    dropout: float = 0.02
+    # Spread (sd) of the per-laser loss rate around `dropout`, drawn once per unit: the lasers of
+    # KITTI's lower block, which all see road or an obstacle at every azimuth, return within
+    # 0.5 % (sd) of their elevation neighbours' counts (section 5).
+    dropout_sigma: float = 0.005
     dark_range: float = 50.0  # range on a 10 % target (datasheet)
     bright_range: float = 120.0  # range on a rho_bright target (datasheet)
     rho_bright: float = 0.8
     detection: bool = True  # False: keep every hit within range (no power threshold)
-    saturation_range: float = 5.0  # closer than this the receiver over-reads (reflectance up)
+    # Reflectance channel. KITTI writes it as float32(k / 100), k = 0..99: the step is 0.01 and
+    # the largest value 0.99, which 0.19 % of returns read (saturated) (section 1).
+    refl_step: float = 0.01
+    refl_max: float = 0.99
+    # Readings below this read 0: after 16.5 % of returns at 0.00, 0.01 and 0.02 hold 0.01 % and
+    # 0.07 % against 0.54 % and 1.61 % for 0.03 and 0.04 (section 1): the floor lies between.
+    refl_floor: float = 0.025
+    # A return whose echo power is below refl_floor_power x the detection threshold reads 0
+    # (the unit's intensity clamps at its calibrated minimum; far returns read 0 or normally, not
+    # dimmer). Measured on KITTI's road: half its returns read 0 at 37 m, where the floor meets
+    # the road's median nonzero reading at 4-20 m (0.24): 0.24 / 0.1 * (50 / 37) ** 2.375 = 4.89
+    # (section 3).
+    refl_floor_power: float = 4.89
+    # Per-laser gain of the reading, log-normal with median 1, drawn once per unit: sd of
+    # log(laser's median road reading / all lasers' median) over 45 lasers (section 4).
+    gain_sigma: float = 0.225
+    # Each laser reads 0 on a fixed share of its returns whatever their echo (the range is
+    # reported, the intensity is not): log-normal over the lasers, drawn once per unit. On KITTI's
+    # road at 4-20 m the share of one laser in one frame has median 0.038 and log-sd 1.55 (half
+    # the distance between the 16th and 84th percentiles of the log) over 472 laser-frames, from
+    # 0.2 % to 46 % (5th-95th percentile); consistent within a drive, different between drives
+    # (the unit's intensity calibration), mean 10 % (section 4).
+    zero_share_median: float = 0.038
+    zero_share_sigma: float = 1.55
+    # Per-return scatter of the reading (log-logistic, this robust sd of the log: 1.4826 x its
+    # median absolute deviation): one laser's readings on road at 4-20 m in one frame, robust sd
+    # of the log, median over 477 laser-frames
+    # (section 4). It lumps the sensor's amplitude noise with the pavement's texture, which the
+    # scenes' uniform materials lack.
+    reading_sigma: float = 0.31
+    # Glass and porous materials pass rays on (False: every surface is opaque, the first hit returns)
+    transmission: bool = True
     motion: bool = True  # per-ray time: ego and actor motion during the sweep
     weather: bool = True  # apply world.weather (fog, rain)
 
@@ -76,8 +122,16 @@ class LidarSpec:
             raise ValueError(f"LidarSpec {self.name!r}: need 0 <= min_range < max_range")
         if self.rotation_hz <= 0:
             raise ValueError(f"LidarSpec {self.name!r}: rotation_hz must be > 0")
-        if not 0 <= self.dropout < 1:
-            raise ValueError(f"LidarSpec {self.name!r}: dropout must be in [0, 1)")
+        if not 0 <= self.dropout < 1 or self.dropout_sigma < 0:
+            raise ValueError(f"LidarSpec {self.name!r}: dropout must be in [0, 1) and "
+                             "dropout_sigma >= 0")
+        if not (0 < self.refl_step and 0 < self.refl_max <= 1 and 0 <= self.refl_floor
+                and self.refl_floor_power >= 0 and self.gain_sigma >= 0
+                and self.reading_sigma >= 0 and 0 <= self.zero_share_median <= 1
+                and self.zero_share_sigma >= 0):
+            raise ValueError(f"LidarSpec {self.name!r}: need refl_step > 0, refl_max in (0, 1], "
+                             "zero_share_median in [0, 1] and refl_floor, refl_floor_power, "
+                             "gain_sigma, reading_sigma, zero_share_sigma >= 0")
         if not 0 < self.dark_range < self.bright_range or not 0.1 < self.rho_bright <= 1:
             raise ValueError(f"LidarSpec {self.name!r}: need 0 < dark_range < bright_range and "
                              "0.1 < rho_bright <= 1")
@@ -100,31 +154,60 @@ class LidarSpec:
         """gamma with rho_bright / bright_range**gamma == 0.1 / dark_range**gamma."""
         return math.log(self.rho_bright / 0.1) / math.log(self.bright_range / self.dark_range)
 
-    def power(self, rho_cos: np.ndarray, dist: np.ndarray, beta: float = 0.0) -> np.ndarray:
+    def power(self, rho_eff: np.ndarray, dist: np.ndarray, beta: float = 0.0) -> np.ndarray:
         """Received power relative to the detection threshold (detected where >= 1)."""
         g = self.range_exponent
-        rel = rho_cos / 0.1 * (self.dark_range / np.maximum(dist, 1e-3)) ** g
+        rel = rho_eff / 0.1 * (self.dark_range / np.maximum(dist, 1e-3)) ** g
         return rel * np.exp(-2.0 * beta * dist) if beta > 0 else rel
 
-    def detected(self, rho_cos: np.ndarray, dist: np.ndarray) -> np.ndarray:
-        """power(rho_cos, dist) >= 1 in clear air, in fewer passes (the scan's hot path)."""
+    def threshold(self, dist: np.ndarray) -> np.ndarray:
+        """The echo strength rho_eff that a return at `dist` needs in clear air to be detected,
+        0.1 * (dist / dark_range) ** range_exponent (float32 for a float32 `dist`)."""
         g = self.range_exponent
         need = np.power(dist, np.float32(g))
         need *= np.float32(0.1 / self.dark_range ** g)
-        return rho_cos >= need
+        return need
 
-    def laser_biases(self) -> np.ndarray:
-        """The unit's fixed per-laser range biases (m), the same for every frame it scans; a
-        beam subset (`beams=N`) keeps the biases of the lasers it keeps."""
+    def detected(self, rho_eff: np.ndarray, dist: np.ndarray) -> np.ndarray:
+        """power(rho_eff, dist) >= 1 in clear air, in fewer passes (the scan's hot path)."""
+        return rho_eff >= self.threshold(dist)
+
+    def _unit_table(self, stream: int, scale: float) -> np.ndarray:
+        """One standard-normal draw per laser number of this unit (times `scale`), for this
+        spec's beams; a beam subset (`beams=N`) keeps the values of the lasers it keeps."""
         lasers = np.asarray(self.lasers or range(self.beams), dtype=np.int64)
-        table = np.random.default_rng(self.unit_seed).normal(0.0, self.bias_sigma,
-                                                             max(256, int(lasers.max()) + 1))
+        seed = self.unit_seed if stream == 0 else (self.unit_seed, stream)
+        table = np.random.default_rng(seed).normal(0.0, scale, max(256, int(lasers.max()) + 1))
         return table[lasers]
 
+    def laser_biases(self) -> np.ndarray:
+        """The unit's fixed per-laser range biases (m), the same for every frame it scans."""
+        return self._unit_table(0, self.bias_sigma)
+
+    def laser_gains(self) -> np.ndarray:
+        """The unit's fixed per-laser reading gains (log-normal, median 1)."""
+        return np.exp(self._unit_table(1, self.gain_sigma))
+
+    def laser_dropouts(self) -> np.ndarray:
+        """The unit's fixed per-laser loss rates: `dropout` +- `dropout_sigma`, in [0, 0.5]."""
+        if self.dropout <= 0:
+            return np.zeros(self.beams)
+        return np.clip(self.dropout + self._unit_table(2, self.dropout_sigma), 0.0, 0.5)
+
+    def laser_zero_shares(self) -> np.ndarray:
+        """The unit's fixed per-laser shares of returns that read 0 (log-normal, capped at 1)."""
+        if self.zero_share_median <= 0:
+            return np.zeros(self.beams)
+        return np.minimum(self.zero_share_median * np.exp(self._unit_table(3, self.zero_share_sigma)),
+                          1.0)
+
     def ideal(self) -> LidarSpec:
-        """The same geometry with every error source off: exact ranges, all returns kept."""
+        """The same geometry with every error source off: exact ranges, all returns kept, every
+        surface opaque (the first hit returns), the reading without per-laser gains, scatter
+        or zero readings (still floored and quantised as KITTI writes it)."""
         return replace(self, noise_sigma=0.0, bias_sigma=0.0, dropout=0.0, motion=False,
-                       weather=False, detection=False)
+                       weather=False, detection=False, transmission=False, gain_sigma=0.0,
+                       reading_sigma=0.0, zero_share_median=0.0)
 
 
 def _subsample(elev: tuple[float, ...], beams: int, name: str) -> tuple[float, ...]:

@@ -1,8 +1,10 @@
-"""The world as one Embree triangle scene, with per-triangle actor id and reflectivity.
+"""The world as one Embree triangle scene, with per-triangle actor id and material.
 
 Rays hit the very meshes the camera renders (every actor part and static part), not proxy
 shapes. All triangles go into a single Embree geometry, so a hit's primID indexes the
-lookup arrays directly.
+lookup arrays directly. Per triangle: the material's reflectivity and incidence exponent (the
+scan's hot path gathers those), and an index into the world's distinct materials, whose
+porosity and transmittance the pass-through step reads for the few hits that need them.
 
 Motion: Embree in embreex has no motion blur, so each moving actor is placed once, at its
 pose at the instant the head sweeps across the actor's centre bearing (`placed_time`);
@@ -32,7 +34,17 @@ class Target:
     scene: EmbreeScene
     tri_actor: np.ndarray  # (F,) int32 actor id per triangle, 0 = static
     tri_slot: np.ndarray  # (F,) int32 index into the per-actor arrays below, -1 = static
-    tri_refl: np.ndarray  # (F,) float32 LiDAR reflectivity per triangle
+    tri_refl: np.ndarray  # (F,) float32 LiDAR reflectivity per triangle (Material.reflectivity)
+    tri_expo: np.ndarray  # (F,) float32 Material.incidence_exponent per triangle
+    tri_mat: np.ndarray  # (F,) int16 index into `materials`
+    tri_passes: np.ndarray  # (F,) bool: a porous or glass triangle (rays may pass on)
+    materials: tuple  # the distinct simgen.world.Material objects, in first-seen order
+    mat_porosity: np.ndarray  # (M,) float32
+    mat_transmittance: np.ndarray  # (M,) float32
+    # Glass parts are closed convex solids (a car's glasshouse, a window box): where a ray that
+    # entered one leaves it follows from its face planes (kernels.pass_prepare), with no query.
+    tri_glass: np.ndarray  # (F,) int32 index into glass_planes, -1 = not glass
+    glass_planes: np.ndarray  # (G, K, 4) float32 outward unit normal and offset per face, zero-padded
     tri_inv_ng: np.ndarray  # (F,) float32 1 / |edge cross product|: normalises Embree's Ng
     actor_ids: np.ndarray  # (A,) int32
     placed_time: np.ndarray  # (A,) float64 time each actor's mesh is placed at
@@ -66,15 +78,58 @@ def _arr(a) -> np.ndarray:
     return np.asarray(a).view(np.ndarray)
 
 
+def _glass_planes(v_all: np.ndarray, f_all: np.ndarray, panes: list[tuple[int, int, int, int]],
+                  n_tri: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per triangle, its glass part (-1: none); per glass part (a closed convex mesh), its faces'
+    outward unit normals and offsets (n . p = offset), oriented away from the part's vertex
+    centroid whatever the winding, zero-padded to (G, K, 4). All parts in one vectorised pass."""
+    tri_glass = np.full(n_tri, -1, np.int32)
+    if not panes:
+        return tri_glass, np.zeros((0, 0, 4), np.float32)
+    f0, nf, v0, nvp = (np.array(c, np.int64) for c in zip(*panes))
+    part = np.repeat(np.arange(len(panes)), nf)
+    tris = np.concatenate([np.arange(a, a + b) for a, b in zip(f0, nf)])
+    tri_glass[tris] = part
+    centroid = np.add.reduceat(v_all[np.concatenate([np.arange(a, a + b) for a, b in zip(v0, nvp)])],
+                               np.concatenate([[0], np.cumsum(nvp)[:-1]])) / nvp[:, None]
+    t = v_all[f_all[tris]].astype(np.float64)
+    n = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-30)
+    off = np.einsum("ij,ij->i", n, t[:, 0])
+    flip = np.einsum("ij,ij->i", n, centroid[part]) > off  # the centroid must lie behind each face
+    n[flip], off[flip] = -n[flip], -off[flip]
+    planes = np.zeros((len(panes), int(nf.max()), 4), np.float32)
+    planes[part, tris - np.repeat(f0, nf)] = np.concatenate([n, off[:, None]], axis=1)
+    return tri_glass, planes
+
+
+def _embree_scene(verts: list, faces: list):
+    """One Embree scene of every triangle (BVH built now), the concatenated vertices and faces,
+    and each triangle's inverse doubled area (for barycentric work in the kernels)."""
+    scene = EmbreeScene()
+    if not verts:
+        return scene, None, None, np.zeros(0, np.float32)
+    v_all = np.ascontiguousarray(np.concatenate(verts), dtype=np.float32)
+    f_all = np.ascontiguousarray(np.concatenate(faces), dtype=np.int32)
+    TriangleMesh(scene, v_all, f_all)
+    scene.run(np.zeros((1, 3), np.float32), np.ones((1, 3), np.float32))  # build the BVH now
+    tri = v_all[f_all].astype(np.float64)
+    ng = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    return scene, v_all, f_all, (1.0 / np.maximum(ng, 1e-30)).astype(np.float32)
+
+
 def build_target(world: World, spec: LidarSpec) -> Target:
     """Concatenate every triangle in world frame (actors at their placement poses): static
     parts, then still actors, then moving actors, so one comparison finds hits to correct."""
     t_place = placement_times(world, spec)
-    verts, faces, actor, slot, refl = [], [], [], [], []
+    verts, faces, actor, slot, mat = [], [], [], [], []
+    mats: dict = {}
+    panes: list[tuple[int, int, int, int]] = []  # glass parts: first triangle, count, first vertex, count
     nv = 0
+    nf_total = 0
 
-    def add(mesh, transform, aid: int, s: int, rho: float) -> None:
-        nonlocal nv
+    def add(mesh, transform, aid: int, s: int, material) -> None:
+        nonlocal nv, nf_total
         v = _arr(mesh.vertices)
         if transform is not None:
             v = v @ transform[:3, :3].T + transform[:3, 3]
@@ -84,11 +139,14 @@ def build_target(world: World, spec: LidarSpec) -> Target:
         nf = len(f)
         actor.append(np.full(nf, aid, np.int32))
         slot.append(np.full(nf, s, np.int32))
-        refl.append(np.full(nf, rho, np.float32))
+        mat.append(np.full(nf, mats.setdefault(material, len(mats)), np.int16))
+        if material.transmittance > 0:
+            panes.append((nf_total, nf, nv, len(v)))
         nv += len(v)
+        nf_total += nf
 
     for part in world.static:
-        add(part.mesh, None, 0, -1, part.material.reflectivity)
+        add(part.mesh, None, 0, -1, part.material)
     placed_origin = np.zeros((len(world.actors), 3))
     moves = [spec.motion and (bool(np.any(np.asarray(a.velocity) != 0)) or a.yaw_rate != 0)
              for a in world.actors]
@@ -102,25 +160,29 @@ def build_target(world: World, spec: LidarSpec) -> Target:
             pose = a.pose_at(float(t))
             placed_origin[i] = pose[:3, 3]
             for part in a.parts:
-                add(part.mesh, pose, a.id, i, part.material.reflectivity)
+                add(part.mesh, pose, a.id, i, part.material)
 
-    scene = EmbreeScene()
-    if verts:
-        v_all = np.ascontiguousarray(np.concatenate(verts), dtype=np.float32)
-        f_all = np.ascontiguousarray(np.concatenate(faces), dtype=np.int32)
-        TriangleMesh(scene, v_all, f_all)
-        scene.run(np.zeros((1, 3), np.float32), np.ones((1, 3), np.float32))  # build the BVH now
-        tri = v_all[f_all].astype(np.float64)
-        ng = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
-        inv_ng = (1.0 / np.maximum(ng, 1e-30)).astype(np.float32)
-    else:
-        inv_ng = np.zeros(0, np.float32)
+    scene, v_all, f_all, inv_ng = _embree_scene(verts, faces)
     cat = (lambda xs, dt: np.concatenate(xs) if xs else np.zeros(0, dt))
+    materials = tuple(mats)
+    table = (lambda f: np.array([f(m) for m in materials], np.float32).reshape(-1))
+    tri_mat = cat(mat, np.int16)
+    tri_glass, glass_planes = (_glass_planes(v_all, f_all, panes, len(tri_mat)) if verts
+                               else (np.zeros(0, np.int32), np.zeros((0, 0, 4), np.float32)))
+    mat_porosity, mat_transmittance = table(lambda m: m.porosity), table(lambda m: m.transmittance)
     return Target(
         scene=scene,
         tri_actor=cat(actor, np.int32),
         tri_slot=cat(slot, np.int32),
-        tri_refl=cat(refl, np.float32),
+        tri_refl=table(lambda m: m.reflectivity)[tri_mat],
+        tri_expo=table(lambda m: m.incidence_exponent)[tri_mat],
+        tri_mat=tri_mat,
+        tri_passes=((mat_porosity > 0) | (mat_transmittance > 0))[tri_mat],
+        materials=materials,
+        mat_porosity=mat_porosity,
+        mat_transmittance=mat_transmittance,
+        tri_glass=tri_glass,
+        glass_planes=glass_planes,
         tri_inv_ng=inv_ng,
         actor_ids=np.array([a.id for a in world.actors], dtype=np.int32),
         placed_time=t_place,

@@ -91,16 +91,22 @@ def test_dropout_rate():
 
 
 def test_reflectance_follows_reflectivity_and_incidence():
+    # the reading model pinned in detail in test_reflectance.py; here the default sensor: a 0.6
+    # wall at 20 m reads 0.6 * cos(incidence) times the laser's gain and scatter, floored and
+    # quantised as KITTI writes it
     spec = replace(preset("hdl64e"), dropout=0.0, noise_sigma=0.0, bias_sigma=0.0)
     d = 20.0
     s = scan(_wall_world(d, 0.6), spec, 0)
-    cos_inc = d / _r(s)
-    np.testing.assert_allclose(s.points[:, 3], np.round(0.6 * cos_inc * 100) / 100, atol=0.0101)
+    near = _r(s) < 25.0  # inside the range floor's reach (0.489 * (25 / 50) ** 2.375 = 0.094)
+    v = s.points[near, 3].astype(np.float64)
+    lit = v > 0
+    ratio = v[lit] / (0.6 * d / _r(s)[near][lit] * spec.laser_gains()[s.ring[near][lit]])
+    assert np.median(ratio) == pytest.approx(1.0, abs=0.03)  # the scatter's median is 1
     q = s.points[:, 3].astype(np.float64) * 100
     np.testing.assert_allclose(q, np.round(q), atol=1e-4)  # 0.01 steps, as in KITTI
-    near = scan(_wall_world(2.5, 0.2), spec, 0)  # inside saturation_range: reads brighter
-    f = _facing(near, 5.0)
-    assert near.points[f, 3].min() >= 0.2 * 0.99 * (5.0 / 2.6) ** 2 - 0.01
+    assert s.points[:, 3].max() <= np.float32(0.99)
+    # zero readings: the lasers' zero shares (mean about 0.1) on this bright, near wall
+    assert 0.03 < (v == 0).mean() < 0.25
 
 
 def test_fog_attenuates_and_adds_near_scatter():

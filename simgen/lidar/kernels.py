@@ -1,0 +1,259 @@
+"""Compiled per-hit loops of the sweep (numba): the steps that numpy would do in many passes over
+gathered rows. Each is a plain function of arrays; scan.py documents the physics."""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+
+@numba.njit(cache=True, nogil=True)
+def pass_candidates(prim, passes):
+    """The rays whose hit is on a triangle that rays may pass (`passes` per triangle)."""
+    out = np.empty(prim.shape[0], np.int64)
+    k = 0
+    for i in range(prim.shape[0]):
+        p = prim[i]
+        if p >= 0 and passes[p]:
+            out[k] = i
+            k += 1
+    return out[:k]
+
+
+@numba.njit(cache=True, nogil=True)
+def _pane(t_n, c, r0):
+    """One-way transmittance of a pane at incidence cos c: its normal-incidence value t_n times
+    the rise of the Fresnel loss of both faces towards grazing (Schlick's approximation)."""
+    c = min(max(c, 0.0), 1.0)
+    fresnel = r0 + (1.0 - r0) * (1.0 - c) ** 5
+    q = (1.0 - fresnel) / (1.0 - r0)
+    return t_n * q * q
+
+
+@numba.njit(cache=True, nogil=True)
+def pass_prepare(cand, u, prim, tfar, ng, origins, d_w, inv_ng, tri_mat, mat_t, mat_p, tri_glass,
+                 glass_planes, loss, pane_max, r0, step):
+    """One round of pass-through, before its query, over the rays `cand` (their hit: `prim`,
+    `tfar`, `ng`). Glass lets the ray through the pane where it entered (`loss`, in place,
+    takes the pane's two-way transmittance) and the ray crosses the glass solid to the nearest
+    face it heads out through (its face planes). A solid thinner than `pane_max` is that one
+    pane: the ray goes on. A thicker one is a vehicle's glasshouse: leaving through a face that
+    looks down (normal z < -0.5), the ray goes on into the body below the window line, i.e. the
+    interior, and returns from there (`tfar` moves to that point; the glass material's
+    reflectivity is the interior's); leaving through a side or the top, it passes the far pane
+    too (`loss` takes that pane's transmittance) and goes on. A porous material lets the ray go
+    on where the ray's uniform `u` is below its porosity. Returns the rays that go on, and the
+    origins, directions and start ranges (from the sensor) of their next query, `step` beyond
+    the surface they leave."""
+    n = cand.shape[0]
+    sel = np.empty(n, np.int64)
+    o2 = np.empty((n, 3), np.float32)
+    d2 = np.empty((n, 3), np.float32)
+    start = np.empty(n, np.float32)
+    k = 0
+    for c in range(n):
+        i = cand[c]
+        t = prim[i]
+        m = tri_mat[t]
+        s = tfar[i]
+        if mat_t[m] > 0:
+            g = tri_glass[t]
+            x0 = origins[i, 0] + s * d_w[i, 0]
+            x1 = origins[i, 1] + s * d_w[i, 1]
+            x2 = origins[i, 2] + s * d_w[i, 2]
+            best = np.inf
+            c_out = 1.0
+            z_out = 0.0
+            for f in range(glass_planes.shape[1]):
+                nx, ny, nz = glass_planes[g, f, 0], glass_planes[g, f, 1], glass_planes[g, f, 2]
+                nd = nx * d_w[i, 0] + ny * d_w[i, 1] + nz * d_w[i, 2]
+                if nd > 1e-6:
+                    dist = (glass_planes[g, f, 3] - (nx * x0 + ny * x1 + nz * x2)) / nd
+                    if dist < best:
+                        best = dist
+                        c_out = nd
+                        z_out = nz
+            depth = max(best, 0.0) if best < np.inf else 0.0
+            c_in = abs(ng[i, 0] * d_w[i, 0] + ng[i, 1] * d_w[i, 1] + ng[i, 2] * d_w[i, 2]) * inv_ng[t]
+            tr = _pane(mat_t[m], c_in, r0)
+            if depth >= pane_max:
+                if z_out < -0.5:  # into the body below the windows: the interior returns
+                    loss[i] *= tr * tr
+                    tfar[i] = s + depth
+                    continue
+                tr *= _pane(mat_t[m], c_out, r0)
+            loss[i] *= tr * tr
+            s += depth
+        elif not u[c] < mat_p[m]:
+            continue
+        s += step
+        sel[k] = i
+        start[k] = s
+        for a in range(3):
+            d2[k, a] = d_w[i, a]
+            o2[k, a] = origins[i, a] + s * d_w[i, a]
+        k += 1
+    return sel[:k], o2[:k], d2[:k], start[:k]
+
+
+@numba.njit(cache=True, nogil=True)
+def pass_apply(sel, start, prim_q, tfar_q, ng_q, prim, tfar, ng, passes):
+    """One round of pass-through, after its query: the rays `sel` take their new hit's triangle,
+    range from the sensor and Ng row (in place; -1: the ray met nothing and returns nothing).
+    Returns the rays whose new hit may pass on again."""
+    n = sel.shape[0]
+    nxt = np.empty(n, np.int64)
+    k = 0
+    for q in range(n):
+        i = sel[q]
+        p = prim_q[q]
+        prim[i] = p
+        if p < 0:
+            continue
+        tfar[i] = start[q] + tfar_q[q]
+        for a in range(3):
+            ng[i, a] = ng_q[q, a]
+        if passes[p]:
+            nxt[k] = i
+            k += 1
+    return nxt[:k]
+
+
+@numba.njit(cache=True, nogil=True)
+def _moved(i, s, rr, thr, ng, d_w, origins, ray_time, placed_time, placed_origin, velocity,
+           yaw_rate, gamma):
+    """Range and threshold of ray i's hit on moving actor slot s at the ray's own time (see
+    detect_rays: the facet plane moves with the actor's rigid motion since its placement)."""
+    dt = ray_time[i] - placed_time[s]
+    r64 = np.float64(rr)
+    dx, dy, dz = np.float64(d_w[i, 0]), np.float64(d_w[i, 1]), np.float64(d_w[i, 2])
+    ex = velocity[s, 0] * dt
+    ey = velocity[s, 1] * dt
+    ez = velocity[s, 2] * dt
+    if yaw_rate[s] != 0.0:
+        relx = np.float64(origins[i, 0]) + r64 * dx - placed_origin[s, 0]
+        rely = np.float64(origins[i, 1]) + r64 * dy - placed_origin[s, 1]
+        a = yaw_rate[s] * dt
+        ca, sa = math.cos(a), math.sin(a)
+        ex += (ca - 1.0) * relx - sa * rely
+        ey += sa * relx + (ca - 1.0) * rely
+    nx, ny, nz = np.float64(ng[i, 0]), np.float64(ng[i, 1]), np.float64(ng[i, 2])
+    nd = nx * dx + ny * dy + nz * dz
+    if abs(nd) > 1e-3:
+        shift = (nx * ex + ny * ey + nz * ez) / nd
+        return np.float32(r64 + shift), np.float32(thr * (1.0 + gamma * shift / max(r64, 1e-3)))
+    return rr, thr
+
+
+@numba.njit(cache=True, nogil=True)
+def detect_rays(prim, tfar, ng, d_w, origins, inv_ng, loss, tri_refl, tri_expo, tri_actor, need,
+                ext, u, beams, columns, drop, zero, detect, min_range, max_range, motion,
+                first_moving, tri_slot, ray_time, placed_time, placed_origin, velocity, yaw_rate,
+                gamma):
+    """Every ray's return (scan.py, steps 3-5), the kept ones compacted. Rays are ring-major
+    (ray i = ring * columns + column), so the per-laser values (`drop`, `zero`: one per ring)
+    are read once per ring. Per ray with a hit:
+
+    motion (if `motion` and the triangle is a moving actor's, index >= first_moving): the hit
+    material point moves by the actor's rigid motion `delta` between its placement time and
+    the ray's own time; the facet plane moves with it, so the range changes by
+    (n . delta) / (n . d) (exact for pure translation, first order in the small yaw), in
+    float64; the threshold follows to first order, need * (1 + gamma * shift / range) (the
+    shift is centimetres: the actor is placed when the head faces it);
+    echo: rho_eff = reflectivity * |cos incidence| ** k (* `loss`, glass; zero-length: none);
+    detection: rho_eff (* `ext`, two-way extinction; zero-length: clear air) >= `need`, the
+    threshold at the true range; then dropped where the ray's uniform `u` is below its laser's
+    rate `drop`; the true range must lie in [min_range, max_range].
+
+    The same uniform, rescaled past the drop-out (uniform again and independent of it), decides
+    the reading (scan._read): below the laser's `zero` share the laser reads 0 (v = -1); above
+    it, rescaled once more, it is the uniform v of the reading's scatter.
+    Returns the kept rays, their true range, rho_eff, threshold, actor id and v."""
+    n = prim.shape[0]
+    idx_o = np.empty(n, np.int64)
+    r_o = np.empty(n, np.float32)
+    rho_o = np.empty(n, np.float32)
+    need_o = np.empty(n, np.float32)
+    aid_o = np.empty(n, np.int32)
+    v_o = np.empty(n, np.float32)
+    has_loss, has_ext = loss.shape[0] > 0, ext.shape[0] > 0
+    one = np.float32(1.0)
+    k = 0
+    for ring in range(beams):
+        d = drop[ring]
+        z = zero[ring]
+        for i in range(ring * columns, (ring + 1) * columns):
+            t = prim[i]
+            if t < 0:
+                continue
+            rr = tfar[i]
+            thr = need[i]
+            if motion and t >= first_moving:
+                rr, thr = _moved(i, tri_slot[t], rr, thr, ng, d_w, origins, ray_time, placed_time,
+                                 placed_origin, velocity, yaw_rate, gamma)
+            e = tri_expo[t]
+            if e == 0.0:
+                rho = tri_refl[t]
+            else:
+                c = abs(ng[i, 0] * d_w[i, 0] + ng[i, 1] * d_w[i, 1] + ng[i, 2] * d_w[i, 2]) * inv_ng[t]
+                rho = tri_refl[t] * (c if e == 1.0 else c ** e)
+            if has_loss:
+                rho *= loss[i]
+            if detect:
+                p = rho * ext[i] if has_ext else rho
+                if p < thr:
+                    continue
+            if u[i] < d:
+                continue
+            if rr < min_range or rr > max_range:
+                continue
+            idx_o[k] = i
+            r_o[k] = rr
+            rho_o[k] = rho
+            need_o[k] = thr
+            aid_o[k] = tri_actor[t]
+            w = (u[i] - d) / (one - d)  # uniform on [0, 1) again
+            v_o[k] = -1.0 if w < z else (w - z) / (one - z)  # uniform on [0, 1) once more
+            k += 1
+    return idx_o[:k], r_o[:k], rho_o[:k], need_o[:k], aid_o[:k], v_o[:k]
+
+
+@numba.njit(cache=True, nogil=True)
+def read_returns(idx, r, rho, need, v, scatter, ext, noise, noise_sigma, bias, gain, floor_power,
+                 floor0, per_step, k_max, dirs4, ring_t, az_t, time_t):
+    """The output rows (scan.py, steps 5 and 7), in float32. Per return: the range takes its
+    laser's `bias` and its standard normal `noise` * `noise_sigma` (zero-length: neither); the
+    reading is 0 where v < 0 (the laser's zero share), else s = gain * scatter[v] * rho_eff
+    (* `ext`, two-way extinction; zero-length: clear air), `scatter` the scatter's quantiles at
+    len(scatter) equal steps of v; s reads 0 below max(floor0, floor_power * need), else
+    k / per_step, k = round(s * per_step) <= k_max."""
+    n = idx.shape[0]
+    points = np.empty((n, 4), np.float32)
+    ring = np.empty(n, np.uint8)
+    az = np.empty(n, np.float32)
+    tm = np.empty(n, np.float32)
+    noisy = noise.shape[0] > 0
+    has_ext = ext.shape[0] > 0
+    n_q = scatter.shape[0]
+    for k in range(n):
+        i = idx[k]
+        lz = ring_t[i]
+        rr = r[k]
+        if noisy:
+            rr = rr + bias[lz] + noise[k] * noise_sigma
+        for a in range(3):
+            points[k, a] = dirs4[i, a] * rr
+        ring[k] = lz
+        az[k] = az_t[i]
+        tm[k] = time_t[i]
+        value = np.float32(0.0)
+        if v[k] >= 0:
+            s = gain[lz] * scatter[min(int(v[k] * n_q), n_q - 1)] * rho[k]
+            if has_ext:
+                s *= ext[k]
+            if s >= max(floor0, floor_power * need[k]):
+                value = min(np.rint(s * per_step), k_max) / per_step
+        points[k, 3] = value
+    return points, ring, az, tm

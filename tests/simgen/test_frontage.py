@@ -1,0 +1,148 @@
+"""Lots beside the street (clutter.frontage): the geometry the plan promises, checked on the
+meshes and actors of sampled worlds."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import shapely
+
+from simgen.road import RoadLayout
+from simgen.sample import _footprint, sample_world
+from simgen.scenery import (
+    FRONT_YARD,
+    LAND_DEPTH,
+    STALL_W,
+    _outer,
+    build_scenery,
+    plan_frontage,
+)
+from simgen.spec import SceneSpec, SpecError, spec_from_dict
+
+
+def _spec(frontage: dict, **clutter) -> SceneSpec:
+    """A straight street with parked cars, pedestrians, side streets and the given lots."""
+    return spec_from_dict({
+        "name": "f", "road": {"type": "straight", "lanes_per_direction": 1, "length_behind": 60},
+        "traffic": {"parked_per_100m": 20, "pedestrians_per_100m": 15, "car_park_occupancy": 1.0},
+        "clutter": {"frontage": frontage, "side_streets_per_100m": 1.5, "trees_per_100m": 8,
+                    **clutter}})
+
+
+@pytest.fixture(scope="module")
+def mixed():
+    """A world with every kind of lot (seed and frame chosen so that all four occur)."""
+    spec = _spec({"row": 1, "houses": 1, "open": 1, "car_park": 1})
+    world = sample_world(spec, 3, 0)
+    plan = plan_frontage(world.scenery)
+    assert {lot.kind for lot in plan.lots} == {"row", "houses", "open", "car_park"}
+    assert plan.mouths[-1] and plan.mouths[1] and plan.stalls
+    return world, plan, RoadLayout(**world.scenery["road"])
+
+
+def _sd_box(s0: float, s1: float, d0: float, d1: float) -> shapely.Polygon:
+    """The rectangle [s0, s1] x [d0, d1] of road coordinates: world x, y on a straight road."""
+    return shapely.box(s0, min(d0, d1), s1, max(d0, d1))
+
+
+def _facades(world) -> list[np.ndarray]:
+    """Each building's 8 corners (facade parts merge boxes of one colour)."""
+    boxes = []
+    for p in world.static:
+        if p.material.name == "facade":
+            v = np.asarray(p.mesh.vertices)
+            assert len(v) % 8 == 0
+            boxes += list(v.reshape(-1, 8, 3))
+    return boxes
+
+
+def test_no_actor_stands_in_a_building_hedge_fence_or_trunk(mixed):
+    world, _, _ = mixed
+    _, obstacles = build_scenery(world.scenery)
+    solid = [o.polygon for o in obstacles if o.base == 0.0]  # buildings, boundaries, trunks
+    facades = shapely.union_all([shapely.convex_hull(shapely.MultiPoint(b[:, :2]))
+                                 for b in _facades(world)])
+    for a in world.actors:
+        fp = _footprint(a.pose, a.recipe["dims"][2], a.recipe["dims"][1], 0.0)
+        assert not fp.intersects(facades), a.id
+        assert not any(fp.intersects(p) for p in solid), a.id
+
+
+def test_set_backs_are_honoured():
+    """Houses stand at least a front yard behind the sidewalk, closed rows `building_setback`."""
+    for frontage, setback, least in (({"houses": 1}, 0.0, FRONT_YARD[0]), ({"row": 1}, 2.5, 2.5)):
+        world = sample_world(_spec(frontage, building_setback=setback), 1, 0)
+        road = RoadLayout(**world.scenery["road"])
+        facades = _facades(world)
+        assert len(facades) > 10
+        for b in facades:
+            y = b[:, 1]
+            side = 1 if y.mean() > 0 else -1
+            behind = side * y - side * _outer(road, side)  # metres behind the sidewalk's back
+            assert behind.min() >= least - 1e-9, (frontage, behind.min())
+
+
+def test_car_park_cars_stand_in_their_stalls_on_the_paving(mixed):
+    world, plan, road = mixed
+    paving = shapely.union_all([_sd_box(lot.s0, lot.s1, _outer(road, lot.side),
+                                        _outer(road, lot.side) + lot.side * lot.depth)
+                                for lot in plan.lots if lot.kind == "car_park"])
+    centres = np.array([st[:2, 3] for st in plan.stalls])
+    in_park = [a for a in world.actors if shapely.Point(a.pose[:2, 3]).within(paving)]
+    assert len(in_park) > 20
+    for a in in_park:
+        assert a.cls in ("Car", "Van") and not np.any(a.velocity)
+        assert a.pose[2, 3] == road.curb_height  # on the paving, which lies at sidewalk height
+        assert np.min(np.linalg.norm(centres - a.pose[:2, 3], axis=1)) < 1e-9  # a stall's centre
+        assert abs(a.pose[1, 0]) > 0.99  # across the road, nose in or out
+        fp = _footprint(a.pose, a.recipe["dims"][2], a.recipe["dims"][1], 0.0)
+        assert fp.within(paving.buffer(0.1))
+    # stalls are EAR's 2.5 m apart along the row
+    row = np.sort(centres[np.abs(centres[:, 1] - centres[0, 1]) < 1e-6, 0])
+    assert np.allclose(np.diff(row)[np.diff(row) < 3.0], STALL_W)
+
+
+def test_side_streets_are_open_and_clear(mixed):
+    world, plan, road = mixed
+    _, obstacles = build_scenery(world.scenery)
+    for side, mouths in plan.mouths.items():
+        curb = road.right_curb if side < 0 else road.left_curb
+        far = _outer(road, side) + side * LAND_DEPTH
+        for a, b in mouths:
+            band = _sd_box(a, b, curb, far)
+            assert not any(o.polygon.intersects(band) for o in obstacles)
+            for actor in world.actors:
+                if actor.cls == "Pedestrian" or not np.any(actor.velocity):  # walkers, parked cars
+                    fp = _footprint(actor.pose, actor.recipe["dims"][2], actor.recipe["dims"][1], 0.0)
+                    assert not fp.intersects(band), (actor.id, actor.cls)
+
+
+def test_frontage_is_rebuilt_exactly_from_its_json_parameters(mixed):
+    world, _, _ = mixed
+    static, _ = build_scenery(json.loads(json.dumps(world.scenery)))
+    for p, q in zip(world.static, static, strict=True):
+        assert p.material == q.material
+        assert np.array_equal(p.mesh.vertices, q.mesh.vertices)
+        assert np.array_equal(p.mesh.faces, q.mesh.faces)
+
+
+def test_no_frontage_keeps_the_first_street_model():
+    world = sample_world(spec_from_dict({"name": "x"}), 2, 0)
+    assert world.scenery["clutter"]["frontage"] == {} and plan_frontage(world.scenery) is None
+    old = dict(world.scenery, clutter={k: v for k, v in world.scenery["clutter"].items()
+                                       if k not in ("frontage", "side_streets_per_100m")})
+    for p, q in zip(world.static, build_scenery(old)[0], strict=True):
+        assert np.array_equal(p.mesh.vertices, q.mesh.vertices)
+    # the frontage needs buildings in the city: elsewhere it is ignored
+    grass = sample_world(_spec({"houses": 1}, environment="grass"), 2, 0)
+    assert plan_frontage(grass.scenery) is None
+
+
+@pytest.mark.parametrize("frontage,words", [({"yards": 1.0}, "unknown lot kind"),
+                                            ({"row": -1.0}, "negative"),
+                                            ({"row": 0.0}, "sum to zero")])
+def test_frontage_spec_errors_name_the_key(frontage, words):
+    with pytest.raises(SpecError, match=rf"clutter\.frontage.*{words}"):
+        spec_from_dict({"name": "x", "clutter": {"frontage": frontage}})
