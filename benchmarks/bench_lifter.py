@@ -1,11 +1,15 @@
-"""Lifter speed: milliseconds per frame of each lifting method without the network (size and
-orientation from the labels), and of the network per crop.
+"""Lifter speed: milliseconds per frame of each lifting method, the LiDAR part alone and the whole
+lift with the size/orientation network.
 
-    .venv/bin/python benchmarks/bench_lifter.py --data data/urban_val_hdl64 --split val --frames 50
+    .venv/bin/python benchmarks/bench_lifter.py --data data/lifter/urban_val --split val --frames 50
 
-Per frame: the LiDAR transform to the camera frame, the road plane (fit) and the lifting of every
-labelled road user's box; file reading is not counted. Wall time and the process's CPU time are
-both printed: on a shared, oversubscribed machine the CPU time is the figure that means something.
+Per frame, "lift" is what `lifter.pipeline.lift_frame` does: the LiDAR transform to the camera
+frame, the road (fit: the frame's plane and the road returns near each object) and the lifting of
+every labelled road user's box, with the size and orientation the network gave (`--priors net`,
+computed beforehand; `truth`: the labels'). "network" is the network's forward pass over the
+frame's crops (one batch, crops cut from the decoded image), "whole" both together; file reading
+is timed apart. Wall time and the process's CPU time are both printed: on a shared,
+oversubscribed machine the CPU time is the figure that means something.
 """
 
 from __future__ import annotations
@@ -18,8 +22,28 @@ import torch
 
 from kitti.dataset import KittiDataset
 from lifter.methods import METHODS
-from lifter.pipeline import lift_frame, oracle_boxes, truth_priors
+from lifter.pipeline import box_outline, lift_frame, oracle_boxes, truth_priors
 from lifter.predictor import DEFAULT_WEIGHTS, Predictor
+
+
+def _timed(fn) -> tuple[object, float, float]:
+    t, c = time.perf_counter(), time.process_time()
+    out = fn()
+    return out, 1000 * (time.perf_counter() - t), 1000 * (time.process_time() - c)
+
+
+def _load(ds: KittiDataset, ids: list[str], pred: Predictor, priors: str) -> tuple[list, list]:
+    """Per frame the lift_frame arguments, the decoded image and the boxes; the read times."""
+    frames, read_ms = [], []
+    for fid in ids:
+        (labels, img, calib, size, velo, planes), ms, _ = _timed(lambda fid=fid: (
+            ds.labels(fid), ds.image(fid), ds.calib(fid), ds.image_size(fid), ds.velodyne(fid),
+            ds.planes(fid)))
+        read_ms.append(ms)
+        boxes = oracle_boxes(labels)
+        pr = truth_priors(boxes, labels) if priors == "truth" else pred(img, boxes)
+        frames.append(((boxes, pr, calib, size, velo, planes), img))
+    return frames, read_ms
 
 
 def main() -> None:
@@ -27,47 +51,33 @@ def main() -> None:
     ap.add_argument("--data", required=True)
     ap.add_argument("--split", default=None)
     ap.add_argument("--frames", type=int, default=50)
+    ap.add_argument("--priors", default="net", choices=["net", "truth"])
     ap.add_argument("--weights", default=str(DEFAULT_WEIGHTS))
     ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument("--methods", default=",".join(METHODS))
     args = ap.parse_args()
     torch.set_num_threads(args.threads)
     ds = KittiDataset(args.data)
-    ids = ds.ids(args.split)[: args.frames]
-    frames = []
-    for fid in ids:
-        labels = ds.labels(fid)
-        boxes = oracle_boxes(labels)
-        frames.append((boxes, truth_priors(boxes, labels), ds.calib(fid), ds.image_size(fid),
-                       ds.velodyne(fid), ds.planes(fid), fid))
-    n_boxes = sum(len(f[0]) for f in frames)
+    outline = box_outline(args.data, None)
+    pred = Predictor(args.weights, threads=args.threads)
+    frames, read_ms = _load(ds, ds.ids(args.split)[: args.frames], pred, args.priors)
+    n_boxes = sum(len(f[0][0]) for f in frames)
     print(f"{len(frames)} frames of {args.data}, {n_boxes} boxes ({n_boxes / len(frames):.1f}/frame), "
-          f"{np.mean([len(f[4]) for f in frames]):.0f} returns/frame")
-    for method in METHODS:
-        lift_frame(method, *frames[0][:6])  # warm-up
-        times, cpu = [], []
-        for f in frames:
-            t, c = time.perf_counter(), time.process_time()
-            lift_frame(method, *f[:6])
-            times.append(time.perf_counter() - t)
-            cpu.append(time.process_time() - c)
-        ms, cms = 1000 * np.array(times), 1000 * np.array(cpu)
-        print(f"{method:9s} wall mean {ms.mean():7.2f} ms/frame (median {np.median(ms):7.2f}), "
-              f"CPU mean {cms.mean():7.2f} ms/frame (median {np.median(cms):7.2f}), "
-              f"{cms.sum() / max(n_boxes, 1):.2f} CPU ms/box")
-    pred = Predictor(args.weights)
-    img = ds.image(frames[0][6])
-    boxes = [b for f in frames for b in f[0]][:64] or []
-    if boxes:
-        pred(img, boxes[:1])
-        t = time.perf_counter()
-        for b in boxes:
-            pred(img, [b])
-        one = 1000 * (time.perf_counter() - t) / len(boxes)
-        t = time.perf_counter()
-        pred(img, boxes)
-        batched = 1000 * (time.perf_counter() - t) / len(boxes)
-        print(f"network   {one:.2f} ms/crop one at a time, {batched:.2f} ms/crop batched "
-              f"({len(boxes)} crops, crop {pred.size} px, {args.threads} thread(s))")
+          f"{np.mean([len(f[0][4]) for f in frames]):.0f} returns/frame, priors: {args.priors}; "
+          f"reading a frame's files {np.mean(read_ms):.1f} ms")
+    net = [_timed(lambda a=a, img=img: pred(img, a[0]))[1:] for a, img in frames]
+    net_ms, net_cpu = np.mean(net, axis=0)
+    print(f"{'network':9s} wall mean {net_ms:7.2f} ms/frame, CPU mean {net_cpu:7.2f} ms/frame "
+          f"(crops {pred.size} px, one batch per frame, {args.threads} thread(s))")
+    for method in args.methods.split(","):
+        lift_frame(method, *frames[0][0], outline)  # warm-up (numba's cache, imports)
+        t = np.array([_timed(lambda a=a, m=method: lift_frame(m, *a, outline))[1:]
+                      for a, _ in frames])
+        ms, cms = t[:, 0], t[:, 1]
+        print(f"{method:9s} lift wall mean {ms.mean():7.2f} ms/frame (median {np.median(ms):7.2f}), "
+              f"CPU mean {cms.mean():7.2f} (median {np.median(cms):7.2f}), "
+              f"{cms.sum() / max(n_boxes, 1):.2f} CPU ms/box; whole (network + lift) "
+              f"{net_ms + ms.mean():7.2f} ms/frame wall, {net_cpu + cms.mean():7.2f} CPU")
 
 
 if __name__ == "__main__":

@@ -19,7 +19,8 @@ CELL = 0.1             # m, bird's-eye cell the returns are pooled in before clu
 MIN_POINTS = 3         # fewer returns: no object here
 MIN_SEED = 2           # returns of a cluster that may seed an object
 MAX_SEEDS = 3          # best-scoring clusters tried as seeds
-MERGE_SLACK = 0.3      # m, how much larger than the size prior's diagonal a merged set may be
+MERGE_SLACK = 0.3      # m, how much longer than the size prior's diagonal, and wider than its width,
+                       # a merged set may be
 
 
 @numba.njit(cache=True, nogil=True)
@@ -32,12 +33,13 @@ def _explain_score(u_span: float, count: int, gap: float, width: float, sigma: f
 
 @numba.njit(cache=True, nogil=True)
 def object_returns(xz: np.ndarray, u: np.ndarray, rng: np.ndarray, width: float, road_d: float,
-                   sigma: float, diag: float) -> tuple[np.ndarray, float]:
+                   sigma: float, diag: float, strip: float = np.inf) -> tuple[np.ndarray, float]:
     """The returns (mask) of the object a 2D box shows, and how well they explain it (0: none).
 
     xz: the frustum's returns in bird's-eye view; u: their image columns; rng: their bird's-eye
     range from the sensor; width: the 2D box's width (px); road_d, sigma: the depth the road
-    predicts under the box and its uncertainty; diag: the size prior's bird's-eye diagonal."""
+    predicts under the box and its uncertainty; diag: the size prior's bird's-eye diagonal; strip:
+    its narrower side (a merged set must fit in a strip that wide)."""
     cells, inverse = _cells(xz)
     cell_label = _link_components(cells, CLUSTER_R)
     label = cell_label[inverse]
@@ -60,7 +62,7 @@ def object_returns(xz: np.ndarray, u: np.ndarray, rng: np.ndarray, width: float,
     lo, hi = _bounds(cells, cell_label, k)
     best, best_score = np.zeros(len(xz), dtype=np.bool_), 0.0
     for seed in seeds:
-        m = _merge(cells, cell_label, seed, diag, lo, hi)[inverse]
+        m = _merge(cells, cell_label, seed, diag, strip, lo, hi)[inverse]
         n = m.sum()
         if n < MIN_POINTS:
             continue
@@ -134,10 +136,10 @@ def _bounds(xz: np.ndarray, label: np.ndarray, k: int) -> tuple[np.ndarray, np.n
 
 
 @numba.njit(cache=True, nogil=True)
-def _merge(xz: np.ndarray, label: np.ndarray, seed: int, diag: float, lo: np.ndarray,
-           hi: np.ndarray) -> np.ndarray:
+def _merge(xz: np.ndarray, label: np.ndarray, seed: int, diag: float, strip: float,
+           lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     """The seed cluster plus the nearby clusters, nearest first, that keep the set within the
-    size prior's diagonal (+ MERGE_SLACK)."""
+    size prior's diagonal and width (+ MERGE_SLACK)."""
     take = label == seed
     seed_xz = xz[take]
     k = len(lo)
@@ -160,12 +162,26 @@ def _merge(xz: np.ndarray, label: np.ndarray, seed: int, diag: float, lo: np.nda
         if dist[c] > diag:
             break
         trial = take | (label == c)
-        pts = xz[trial]
-        centre = pts.sum(axis=0) / len(pts)
-        r2 = 0.0
-        for i in range(len(pts)):
-            dx, dz = pts[i, 0] - centre[0], pts[i, 1] - centre[1]
-            r2 = max(r2, dx * dx + dz * dz)
-        if 2 * np.sqrt(r2) <= diag + MERGE_SLACK:
+        longest, narrowest = _extents(xz[trial])
+        if longest <= diag + MERGE_SLACK and narrowest <= strip + MERGE_SLACK:
             take = trial
     return take
+
+
+@numba.njit(cache=True, nogil=True)
+def _extents(pts: np.ndarray) -> tuple[float, float]:
+    """The set's largest and smallest extent over 16 directions: its diameter (within 2 %) and
+    the width of the narrowest strip holding it (within 2 % of the set's diameter). Twice the
+    largest distance from the centroid is no measure of the diameter: an object's returns crowd
+    on its near face, so the centroid lies there and the far end of a long side counts double.
+    The narrow strip keeps out what lies beside the object (a post, the car in front) even where
+    the set would still fit in the prior's diagonal."""
+    longest, narrowest = 0.0, np.inf
+    for k in range(16):
+        c, s = np.cos(np.pi * k / 16), np.sin(np.pi * k / 16)
+        lo, hi = np.inf, -np.inf
+        for i in range(len(pts)):
+            p = c * pts[i, 0] + s * pts[i, 1]
+            lo, hi = min(lo, p), max(hi, p)
+        longest, narrowest = max(longest, hi - lo), min(narrowest, hi - lo)
+    return longest, narrowest

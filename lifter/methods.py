@@ -7,16 +7,24 @@ The command line, sweep axes, `testbed run`, the golden runner and the scan load
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Callable, Literal
+from typing import TYPE_CHECKING, Literal
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
+
     import numpy as np
 
     from kitti.calib import Calibration
 
     from .types import Box2D, Lifted, Prior
 
-FLAT_ROAD = (0.0, -1.0, 0.0, 1.65)  # camera 1.65 m above a level road (KITTI rig)
+FLAT_ROAD = (0.0, -1.0, 0.0, 1.65)  # without planes/ or a scan: the road 1.65 m below the camera,
+                                   # level (KITTI's rig, Geiger et al. 2013, and the testbed's)
+# How a 2D box outlines its object: "silhouette" (the generator's labels until it took up KITTI's
+# convention, and a detector trained on them: the lowest point is where the nearest tyre meets the
+# road) or "box" (KITTI's labels: the projection of the labelled 3D box, whose lowest point is a
+# bottom corner). `lifter.pipeline.box_outline` reads it from the labels.
+OUTLINES = ("silhouette", "box")
 
 
 @dataclass(frozen=True)
@@ -29,6 +37,7 @@ class Frame:
     image_size: tuple[int, int]
     velodyne: np.ndarray | None  # loaded only when the method reads it
     planes: np.ndarray | None  # planes/ (the road in rect coordinates) when the dataset has it
+    outline: str = "silhouette"  # one of OUTLINES
 
 
 @dataclass(frozen=True)
@@ -36,9 +45,10 @@ class LiftMethod:
     name: str
     summary: str
     needs_scan: bool  # cannot run without velodyne/
-    # where the road plane comes from: fitted to the scan; planes/ else KITTI's flat road;
-    # planes/ else fitted to the scan
-    road: Literal["scan", "planes", "planes-or-scan"]
+    # where the road plane comes from: "scan": fitted to the scan (the frame's plane, then the
+    # road near each object); "planes-or-scan": planes/ when present, else the scan's, else the
+    # FLAT_ROAD prior
+    road: Literal["scan", "planes-or-scan"]
     rig: Literal["any", "roadside"]  # the camera rigs it is meant for
     run: Callable[[Frame], list[Lifted]]
 
@@ -46,78 +56,99 @@ class LiftMethod:
         return self.needs_scan or (self.road == "planes-or-scan" and not has_planes)
 
 
-def _planes_road(f: Frame) -> np.ndarray:
+def _scan_road(f: Frame, pts=None):
+    """The road of the scan: the frame's RANSAC plane and the road returns near each object."""
+    from .ground import fit_ground_plane
+    from .points import frame_points
+    from .road import LocalRoad
+
+    pts = frame_points(f.velodyne, f.calib, None) if pts is None else pts
+    plane = fit_ground_plane(pts.rect)
+    return LocalRoad(pts.rect, plane, pts.sensor[[0, 2]])
+
+
+def _road(f: Frame, pts=None):
+    """planes/ when present, else the scan's road when there is a scan, else FLAT_ROAD."""
     import numpy as np
 
-    from .ground import normalise_plane
+    from .road import FixedRoad
 
-    return normalise_plane(f.planes) if f.planes is not None else np.array(FLAT_ROAD)
+    if f.planes is not None:
+        return FixedRoad(f.planes)
+    if f.velodyne is not None:
+        return _scan_road(f, pts)
+    return FixedRoad(np.array(FLAT_ROAD))
 
 
-def _mono_box(box: Box2D, prior: Prior, calib: Calibration, size, plane) -> Lifted:
-    """Deep3DBox with the road: the 2D box's sides plus the bottom centre on the road plane; a
-    box cut on too many sides by the border may also use its border sides."""
+def _mono_box(box: Box2D, prior: Prior, calib: Calibration, size, road, outline: str) -> Lifted:
+    """Deep3DBox with the road: the 2D box's sides plus the bottom centre on the road plane found
+    under the box's bottom edge; a box cut on too many sides by the border may also use its
+    border sides."""
     import numpy as np
 
-    from .mono import contact_of, solve_from_alpha
+    from .mono import contact_of, mono_quality, solve_weighing_alpha
+    from .road import plane_under
     from .types import Lifted
 
-    contact = contact_of(box.type)
+    contact = contact_of(box.type, outline)
+    plane = plane_under(road, box.centre[0], box.bbox[3], calib.P(2))
     try:
-        sol = solve_from_alpha(prior.dims, prior.alpha, box.bbox, calib, size, plane, contact=contact)
-        return Lifted(sol.location, sol.rotation_y, np.asarray(prior.dims, dtype=float), 0.5)
-    except ValueError:
-        sol = solve_from_alpha(prior.dims, prior.alpha, box.bbox, calib, size, plane, cut_ok=True,
-                               contact=contact)
-        return Lifted(sol.location, sol.rotation_y, np.asarray(prior.dims, dtype=float), 0.3)
+        sol = solve_weighing_alpha(prior.dims, prior.alpha, box.bbox, calib, size, plane,
+                                   contact=contact)
+        cut = 1.0
+    except ValueError:  # cut by the border on too many sides
+        sol = solve_weighing_alpha(prior.dims, prior.alpha, box.bbox, calib, size, plane,
+                                   cut_ok=True, contact=contact)
+        cut = 0.6
+    quality = 0.5 * cut * mono_quality(sol, calib.P(2)[0, 0])
+    return Lifted(sol.location, sol.rotation_y, np.asarray(prior.dims, dtype=float), quality)
 
 
 def _mono(f: Frame) -> list[Lifted]:
-    road = _planes_road(f)
-    return [_mono_box(b, p, f.calib, f.image_size, road) for b, p in zip(f.boxes, f.priors)]
+    road = _road(f)
+    return [_mono_box(b, p, f.calib, f.image_size, road, f.outline)
+            for b, p in zip(f.boxes, f.priors)]
 
 
 def _roadside(f: Frame) -> list[Lifted]:
-    from .ground import fit_ground_plane
-    from .points import frame_points
     from .roadside import lift_roadside
 
     if f.planes is None and f.velodyne is None:
         raise ValueError("method 'roadside' needs the road plane (planes/) or velodyne/")
-    road = (_planes_road(f) if f.planes is not None
-            else fit_ground_plane(frame_points(f.velodyne, f.calib, None).rect))
-    return lift_roadside(f.boxes, f.priors, f.calib, f.image_size, road)
+    return lift_roadside(f.boxes, f.priors, f.calib, f.image_size, _road(f), f.outline)
 
 
 def _frustum(f: Frame) -> list[Lifted]:
-    """The thesis method; a box without enough returns falls back to `mono`."""
+    """The thesis method; a box without enough returns falls back to `mono` on the road."""
     from .frustum import lift_frustum
     from .points import frame_points
 
-    road = _planes_road(f)
-    found = lift_frustum(f.boxes, f.priors, frame_points(f.velodyne, f.calib, None), f.calib)
-    return [hit if hit is not None else _mono_box(b, p, f.calib, f.image_size, road)
+    pts = frame_points(f.velodyne, f.calib, None)
+    found = lift_frustum(f.boxes, f.priors, pts, f.calib)
+    if all(hit is not None for hit in found):
+        return found
+    road = _road(f, pts)
+    return [hit if hit is not None else _mono_box(b, p, f.calib, f.image_size, road, f.outline)
             for hit, b, p in zip(found, f.boxes, f.priors)]
 
 
 def _fit(f: Frame) -> list[Lifted]:
-    """The road plane from this frame's own returns, then the box fitted to the object's."""
+    """The road from this frame's own returns, then the box fitted to the object's."""
     from .fit import lift_fit
-    from .ground import fit_ground_plane
     from .points import frame_points
 
     pts = frame_points(f.velodyne, f.calib, None)
-    road = fit_ground_plane(pts.rect)
-    return lift_fit(f.boxes, f.priors, pts.with_plane(road), f.calib, f.image_size, road)
+    road = _scan_road(f, pts)
+    return lift_fit(f.boxes, f.priors, pts, f.calib, f.image_size, road, outline=f.outline)
 
 
 METHODS: dict[str, LiftMethod] = {m.name: m for m in (
-    LiftMethod("frustum", "the thesis's frustum clustering (falls back to mono)", True, "planes",
-               "any", _frustum),
+    LiftMethod("frustum", "the thesis's frustum clustering (falls back to mono)", True,
+               "planes-or-scan", "any", _frustum),
     LiftMethod("fit", "a box fitted to the object's returns and the 2D box", True, "scan", "any",
                _fit),
-    LiftMethod("mono", "image only: the 2D box's sides and the road plane", False, "planes", "any",
-               _mono),
+    LiftMethod("mono", "image only: the 2D box's sides and the road plane", False,
+               "planes-or-scan", "any", _mono),
     LiftMethod("roadside", "mono for a fixed roadside camera", False, "planes-or-scan",
                "roadside", _roadside),
 )}

@@ -17,17 +17,22 @@ from kitti.boxes import wrap_angle
 from kitti.calib import Calibration
 
 from .mono import contact_of, ground_point, solve_from_alpha
+from .road import FixedRoad, LocalRoad, plane_under
 from .types import Box2D, Lifted, Prior
 
 
 def lift_roadside(boxes: list[Box2D], priors: list[Prior], calib: Calibration,
-                  image_size: tuple[int, int], plane: np.ndarray, cam: int = 2) -> list[Lifted]:
+                  image_size: tuple[int, int], road: LocalRoad | FixedRoad | np.ndarray,
+                  outline: str = "silhouette", cam: int = 2) -> list[Lifted]:
+    """`road`: a plane (a, b, c, d; rect frame) or a road model (the plane under each box)."""
+    road = FixedRoad(road) if isinstance(road, np.ndarray) else road
     out = []
     for box, prior in zip(boxes, priors):
         dims = np.asarray(prior.dims, dtype=float)
+        plane = plane_under(road, box.centre[0], box.bbox[3], calib.P(cam))
         try:
             sol = solve_from_alpha(dims, prior.alpha, box.bbox, calib, image_size, plane, cam,
-                                   contact=contact_of(box.type))
+                                   contact=contact_of(box.type, outline))
             out.append(Lifted(sol.location, sol.rotation_y, dims))
         except ValueError:  # cut by the border on three sides: the bottom-centre ray alone
             g = ground_point(box.centre[0], box.bbox[3], calib, plane, cam)

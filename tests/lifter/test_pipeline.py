@@ -60,9 +60,34 @@ def test_cli_with_detection_files_and_a_trained_checkpoint(dataset, tmp_path):
     assert dt[0].score > dt[1].score  # the detection order survives the lifting
 
 
-def test_missing_detection_file_is_named(dataset, tmp_path):
-    (tmp_path / "det").mkdir()
-    r = CliRunner().invoke(cli, ["lift", "--data", str(dataset), "--boxes", str(tmp_path / "det"),
-                                 "--method", "mono", "--out", str(tmp_path / "o"), "--priors", "truth"])
+def test_missing_detection_file_is_an_empty_frame(dataset, tmp_path):
+    # (this pinned the opposite before: a frame without a detection file was an error; a detector
+    # may write only the frames where it found something, and the evaluation reads a missing
+    # result file as an empty frame, so the lifter does too)
+    det = tmp_path / "det"
+    objs = read_label(dataset / "training" / "label_2" / "000000.txt")
+    for o in objs:
+        o.score = 0.9
+    write_label(det / "000000.txt", objs)
+    r = CliRunner().invoke(cli, ["lift", "--data", str(dataset), "--boxes", str(det), "--method", "mono",
+                                 "--split", "val", "--out", str(tmp_path / "o"), "--priors", "truth"])
+    assert r.exit_code == 0, r.output
+    assert len(read_label(tmp_path / "o" / "000000.txt")) == 2
+    assert (tmp_path / "o" / "000001.txt").read_text() == ""
+
+
+def test_unreadable_frame_is_named_and_earlier_results_stay(dataset, tmp_path):
+    det = tmp_path / "det"
+    for fid in ("000000", "000001"):
+        objs = read_label(dataset / "training" / "label_2" / f"{fid}.txt")
+        for o in objs:
+            o.score = 0.9
+        write_label(det / f"{fid}.txt", objs)
+    (det / "000001.txt").write_text("Car 0 0 0 10 20 30 40 1 1 1 0 0 0 0 high\n")
+    out = tmp_path / "o"
+    r = CliRunner().invoke(cli, ["lift", "--data", str(dataset), "--boxes", str(det), "--method", "mono",
+                                 "--split", "val", "--out", str(out), "--priors", "truth"])
     assert r.exit_code != 0
-    assert "000000.txt" in r.output and "detection file missing" in r.output
+    assert "000001.txt" in r.output and "score" in r.output, r.output
+    assert len(read_label(out / "000000.txt")) == 2  # the frame before it is complete
+    assert not (out / "000001.txt").exists()
