@@ -14,7 +14,7 @@ import hashlib
 import json
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Callable
 
 from kitti.io import atomic_write_text
 from kitti.jobs import Backend
@@ -75,20 +75,30 @@ class Rescan:
     request: RescanRequest
 
 
+def _batch(items: list, jobs_of: Callable, job: Callable, desc: str, done_info: Callable,
+           backend: Backend) -> None:
+    """The per-frame jobs of every item not yet done, as one batch on the backend; then each
+    item is marked done with its record."""
+    todo = [x for x in items if not is_done(x.out)]
+    jobs = [j for x in todo for j in jobs_of(x)]
+    if jobs:
+        backend.map(job, jobs, desc=desc)
+    for x in todo:
+        mark_done(x.out, done_info(x))
+
+
+def _rescan_record(s: Rescan) -> dict:
+    lidar, weather = s.request.lidar, s.request.weather
+    return {"data": str(s.base), "lidar": lidar.preset, "beams": lidar.beams,
+            "max_range": lidar.max_range, "weather": None if weather is None else weather.record()}
+
+
 def rescan(scans: list[Rescan], backend: Backend) -> None:
     """Every frame of every scan not yet done, as one batch of jobs on the backend."""
     from simgen.rescan import rescan_frame, rescan_jobs
 
-    todo = [s for s in scans if not is_done(s.out)]
-    jobs = [j for s in todo for j in rescan_jobs(s.base, s.out, s.request)]
-    if jobs:
-        backend.map(rescan_frame, jobs, desc="rescan")
-    for s in todo:
-        lidar = s.request.lidar
-        weather = s.request.weather
-        mark_done(s.out, {"data": str(s.base), "lidar": lidar.preset, "beams": lidar.beams,
-                          "max_range": lidar.max_range,
-                          "weather": None if weather is None else weather.record()})
+    _batch(scans, lambda s: rescan_jobs(s.base, s.out, s.request), rescan_frame, "rescan",
+           _rescan_record, backend)
 
 
 @dataclass(frozen=True)
@@ -103,13 +113,9 @@ class Reduction:
 def reduce_beams(reductions: list[Reduction], backend: Backend) -> None:
     from kitti.reduce import reduce_frame, reduce_jobs
 
-    todo = [r for r in reductions if not is_done(r.out)]
-    jobs = [j for r in todo
-            for j in reduce_jobs(r.data, r.out, r.beams, sensor_beams=sensor_beams(r.data))]
-    if jobs:
-        backend.map(reduce_frame, jobs, desc="reduce beams")
-    for r in todo:
-        mark_done(r.out, {"data": str(r.data), "beams": r.beams})
+    _batch(reductions,
+           lambda r: reduce_jobs(r.data, r.out, r.beams, sensor_beams=sensor_beams(r.data)),
+           reduce_frame, "reduce beams", lambda r: {"data": str(r.data), "beams": r.beams}, backend)
 
 
 def sensor_beams(data: Path):
