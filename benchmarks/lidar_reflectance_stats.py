@@ -7,7 +7,7 @@ the runs between azimuth wraps are the lasers (64 runs plus the first laser's ta
 Road points: within 0.1 m of the RANSAC road plane (`lifter.ground`), which also gives the
 incidence (cos = |plane normal . ray|).
 
-Usage: .venv/bin/python benchmarks/lidar_reflectance_stats.py [--root /work/shared/kitti_real_dev]
+Usage: .venv/bin/python benchmarks/lidar_reflectance_stats.py [--root ../shared/kitti_real_dev]
 """
 
 from __future__ import annotations
@@ -51,7 +51,7 @@ def load(root: Path) -> list[dict]:
 
 def main() -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("--root", default="/work/shared/kitti_real_dev")
+    ap.add_argument("--root", default=str(Path(__file__).resolve().parents[2] / "shared" / "kitti_real_dev"))
     args = ap.parse_args()
     frames = load(Path(args.root))
     cat = {k: np.concatenate([f[k] for f in frames]) for k in frames[0]}
