@@ -1,5 +1,5 @@
 """Label statistics of one label_2 file: what is labelled, how far, how hidden, how big, and
-whether each 2D box agrees with its own 3D box (real KITTI: within 0.5 px for untruncated cars)."""
+whether each 2D box agrees with its own 3D box (real KITTI dev frames: 0.84 px median gap)."""
 
 from __future__ import annotations
 

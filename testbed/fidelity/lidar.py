@@ -8,9 +8,8 @@ import numpy as np
 from kitti.boxes import points_in_boxes
 from kitti.calib import Calibration
 from kitti.labels import Object3D
-from kitti.rings import recover_rings
+from kitti.rings import elevation, recover_rings
 from lifter.ground import fit_ground_plane, height_above
-from lifter.points import rowdot
 
 from .stats import Acc
 
@@ -38,7 +37,7 @@ def lidar_stats(acc: Acc, scan: np.ndarray, calib: Calibration,
     acc.put("lidar.reflectance_zero", np.count_nonzero(refl == 0) / len(refl))
     acc.hist("lidar.reflectance", refl)
     _rings(acc, pts)
-    rect = _velo_to_rect(pts, calib)
+    rect = calib.lidar_to_rect(pts)
     height = height_above(rect, fit_ground_plane(rect))
     acc.put("lidar.ground_share", np.count_nonzero(np.abs(height) < GROUND_M) / len(pts))
     if labels is not None:
@@ -48,18 +47,12 @@ def lidar_stats(acc: Acc, scan: np.ndarray, calib: Calibration,
 def _rings(acc: Acc, pts: np.ndarray) -> None:
     """Returns and median elevation (degrees) per recovered ring, 0 = top."""
     ring, method = recover_rings(pts, RINGS)
-    el = np.degrees(np.arctan2(pts[:, 2], np.hypot(pts[:, 0], pts[:, 1])))
+    el = np.degrees(elevation(pts))
     counts = np.bincount(ring, minlength=RINGS)[:RINGS]
     per_ring = np.split(el[np.argsort(ring, kind="stable")], np.cumsum(counts)[:-1])
     acc.row("lidar.ring_returns", counts)
     acc.row("lidar.ring_elevation_deg", [np.median(e) if len(e) else np.nan for e in per_ring])
     acc.put("lidar.ring_by_azimuth", method == "azimuth-wrap")
-
-
-def _velo_to_rect(pts: np.ndarray, calib: Calibration) -> np.ndarray:
-    """Column by column: an (N,3)@(3,3) BLAS call costs more in thread start-up than arithmetic."""
-    m = calib.velo_to_rect
-    return np.stack([rowdot(pts, m[k, :3]) + m[k, 3] for k in range(3)], axis=1)
 
 
 def _car_points(acc: Acc, rect: np.ndarray, cars: list[Object3D]) -> None:
