@@ -9,7 +9,9 @@ every labelled road user's box, with the size and orientation the network gave (
 computed beforehand; `truth`: the labels'). "network" is the network's forward pass over the
 frame's crops (one batch, crops cut from the decoded image), "whole" both together; file reading
 is timed apart. Wall time and the process's CPU time are both printed: on a shared,
-oversubscribed machine the CPU time is the figure that means something.
+oversubscribed machine the CPU time is the figure that means something. The per-frame figures are
+steady-state: a first pass over the frames is timed apart, and what it costs above the steady
+state is the one-off work (imports, numba's kernels compiled or, with their cache, loaded).
 """
 
 from __future__ import annotations
@@ -70,14 +72,17 @@ def main() -> None:
     print(f"{'network':9s} wall mean {net_ms:7.2f} ms/frame, CPU mean {net_cpu:7.2f} ms/frame "
           f"(crops {pred.size} px, one batch per frame, {args.threads} thread(s))")
     for method in args.methods.split(","):
-        lift_frame(method, *frames[0][0], outline)  # warm-up (numba's cache, imports)
+        # warm-up: every frame once, as a kernel may first run on any of them
+        _, first_ms, _ = _timed(lambda m=method: [lift_frame(m, *a, outline) for a, _ in frames])
         t = np.array([_timed(lambda a=a, m=method: lift_frame(m, *a, outline))[1:]
                       for a, _ in frames])
         ms, cms = t[:, 0], t[:, 1]
         print(f"{method:9s} lift wall mean {ms.mean():7.2f} ms/frame (median {np.median(ms):7.2f}), "
               f"CPU mean {cms.mean():7.2f} (median {np.median(cms):7.2f}), "
               f"{cms.sum() / max(n_boxes, 1):.2f} CPU ms/box; whole (network + lift) "
-              f"{net_ms + ms.mean():7.2f} ms/frame wall, {net_cpu + cms.mean():7.2f} CPU")
+              f"{net_ms + ms.mean():7.2f} ms/frame wall, {net_cpu + cms.mean():7.2f} CPU; "
+              f"first pass {first_ms - ms.sum():.0f} ms wall above the steady state "
+              f"(imports, numba compile or cache load)")
 
 
 if __name__ == "__main__":

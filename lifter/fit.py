@@ -32,7 +32,7 @@ Step 2 is `clusters.object_returns`, steps 4-5 are `placement`'s kernels.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numba
 import numpy as np
@@ -54,7 +54,7 @@ from .placement import (
     side_misfit,
     translation,
 )
-from .points import FramePoints, rowdot
+from .points import FramePoints
 from .road import FixedRoad, LocalRoad, camera_rays, plane_on_ray, ray_depth
 from .types import Box2D, Lifted, Prior
 
@@ -88,26 +88,39 @@ _FINE = np.deg2rad(np.arange(-1.5, 1.5001, 0.1))
 
 @numba.njit(cache=True, nogil=True)
 def _closeness(xz: np.ndarray, thetas: np.ndarray) -> np.ndarray:
-    """L-shape closeness score per candidate yaw (Zhang et al. 2017's criterion)."""
+    """L-shape closeness score per candidate yaw (Zhang et al. 2017's criterion). Plain loops:
+    the projections, their extremes and the score in two passes per yaw (array expressions made
+    temporaries and four more passes: 2.5 times slower)."""
     score = np.zeros(len(thetas))
     a, b = np.empty(len(xz)), np.empty(len(xz))
     for k in range(len(thetas)):
         c, s = np.cos(thetas[k]), np.sin(thetas[k])
-        # heading of yaw ry in (x, z) is (cos ry, -sin ry); lateral (sin ry, cos ry)
-        a[:] = c * xz[:, 0] - s * xz[:, 1]
-        b[:] = s * xz[:, 0] + c * xz[:, 1]
-        a_lo, a_hi, b_lo, b_hi = a.min(), a.max(), b.min(), b.max()
+        a_lo = b_lo = np.inf
+        a_hi = b_hi = -np.inf
+        for i in range(len(xz)):
+            # heading of yaw ry in (x, z) is (cos ry, -sin ry); lateral (sin ry, cos ry)
+            a[i] = c * xz[i, 0] - s * xz[i, 1]
+            b[i] = s * xz[i, 0] + c * xz[i, 1]
+            a_lo, a_hi = min(a_lo, a[i]), max(a_hi, a[i])
+            b_lo, b_hi = min(b_lo, b[i]), max(b_hi, b[i])
         for i in range(len(xz)):
             d = min(min(a_hi - a[i], a[i] - a_lo), min(b_hi - b[i], b[i] - b_lo))
             score[k] += 1.0 / max(d, LSHAPE_D0)
     return score
 
 
+@numba.njit(cache=True, nogil=True)
 def fit_yaw(xz: np.ndarray, ry_prior: float) -> float:
     """The yaw of the rectangle the returns outline, of the four it allows the one nearest ry_prior."""
-    theta = _lshape_angle(np.ascontiguousarray(xz))
+    theta = _lshape_angle(xz)
     k = np.round((ry_prior - theta) / (np.pi / 2))
-    return float(wrap_angle(theta + k * np.pi / 2))
+    return _wrap(theta + k * np.pi / 2)
+
+
+@numba.njit(cache=True, nogil=True)
+def _wrap(a: float) -> float:
+    """`kitti.boxes.wrap_angle` of one angle, inside the kernels."""
+    return (a + np.pi) % (2 * np.pi) - np.pi
 
 
 @numba.njit(cache=True, nogil=True)
@@ -147,7 +160,7 @@ class _View:
     image_size: tuple[int, int]
     cam: int
     outline: str          # how the 2D boxes outline their objects (lifter.methods.OUTLINES)
-    sensor: np.ndarray    # (3,) LiDAR origin, rect frame
+    sensor_xz: np.ndarray  # (2,) LiDAR origin, bird's-eye (rect x, z)
     frame_plane: np.ndarray  # the frame's road plane (the local planes are per box)
 
     @property
@@ -163,9 +176,10 @@ class _Returns:
     u: np.ndarray
     height: np.ndarray
 
-    @property
-    def centroid(self) -> np.ndarray:
-        return self.xz.sum(axis=0) / len(self.xz)
+    centroid: np.ndarray = field(init=False)  # every yaw hypothesis pulls its box towards it
+
+    def __post_init__(self):
+        self.centroid = self.xz.sum(axis=0) / len(self.xz)
 
 
 def _fallback(box: Box2D, prior: Prior, view: _View, plane: np.ndarray) -> Lifted:
@@ -176,32 +190,51 @@ def _fallback(box: Box2D, prior: Prior, view: _View, plane: np.ndarray) -> Lifte
 
 def _box_for_yaw(ry: float, obj: _Returns, prior: Prior, small: bool, box: Box2D, view: _View,
                  plane: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, float]:
-    """Size and bottom centre of the box with yaw ry around the object's returns (steps 4-5):
-    the prior size grown to hold them and brought to the roof, the faces, 2D sides and road
-    fixing the centre, and an unmeasured length chosen with the 2D box; also the cost of that
-    length against the prior's (0 when the returns measure it)."""
+    """Size and bottom centre of the box with yaw ry around the object's returns (steps 4-5,
+    `_size_and_place`), checked against the image's depth where no return lies low on the
+    object; also its cost: its misfit to the 2D box's sides and its length's to the prior's (0
+    when the returns measure the length)."""
     h, w, l = (float(v) for v in prior.dims)
-    pa = rowdot(obj.xz, np.array([np.cos(ry), -np.sin(ry)]))
-    pb = rowdot(obj.xz, np.array([np.sin(ry), np.cos(ry)]))
+    T, dims, pinned, misfit, length_cost = _size_and_place(
+        obj.xz, obj.u, obj.height, h, w, l, ry, small, box.bbox, view.sensor_xz, obj.centroid,
+        view.P, view.image_size[0], plane)
+    if (not small and obj.height.min() > LOW_RETURNS * dims[0]
+            and box.bbox[3] < view.image_size[1] - 2.0):
+        T = _image_depth_check(T, dims, ry, box, view, plane)  # may move it along its ray
+        misfit = side_misfit(np.array([[*T, *dims, ry]]), view.P, box.bbox, view.image_size[0])[0]
+    return T, dims, pinned, misfit / SIGMA_SIDE_PX ** 2 + length_cost
+
+
+@numba.njit(cache=True, nogil=True)
+def _size_and_place(xz: np.ndarray, u: np.ndarray, height: np.ndarray, h: float, w: float,
+                    l: float, ry: float, small: bool, bbox: np.ndarray, sensor_xz: np.ndarray,
+                    centroid: np.ndarray, P: np.ndarray, width: int,
+                    plane: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, float, float]:
+    """The prior size (h, w, l) grown to hold the returns and brought to the roof, the faces, 2D
+    sides and road fixing the centre, and an unmeasured length chosen with the 2D box: the bottom
+    centre, the size, the pinned count, the box's misfit to the 2D box's sides (`side_misfit`)
+    and its length's cost. One kernel: tried for every yaw hypothesis, its dozen small steps cost
+    more in numpy's call overhead than in arithmetic."""
+    c, s = np.cos(ry), np.sin(ry)
+    pa = xz[:, 0] * c + xz[:, 1] * -s
+    pb = xz[:, 0] * s + xz[:, 1] * c
     ext_a = percentile(pa, 98.0) - percentile(pa, 2.0)
     ext_b = percentile(pb, 98.0) - percentile(pb, 2.0)
     if not small:  # grow to hold the returns, unless they clearly hold something else too
         l = ext_a if l < ext_a <= l + MAX_GROW_L else l
         w = ext_b if w < ext_b <= w + MAX_GROW_W else w
-    top = float(obj.height.max())
+    top = height.max()
     if top > ROOF_SEEN * h:  # the roof is hit: the top lies at most ROOF_GAP above its returns
-        h = float(np.clip(h, top, top + ROOF_GAP))
-    P, width = view.P, view.image_size[0]
-    T, dims, pinned, slide = translation(obj.xz, obj.u, h, w, l, ry, box.bbox, view.sensor[[0, 2]],
-                                         obj.centroid, P, width, plane)
+        h = min(max(h, top), top + ROOF_GAP)
+    T, dims, pinned, slide = translation(xz, u, h, w, l, ry, bbox, sensor_xz, centroid, P, width,
+                                         plane)
     length_cost = 0.0
     if not small and slide.any():  # length not measured: let the 2D box's width choose it
-        T, dims[2] = length_from_sides(T, *dims, ry, slide, box.bbox, P, width, plane)
+        T, dims[2] = length_from_sides(T, dims[0], dims[1], dims[2], ry, slide, bbox, P, width,
+                                       plane)
         length_cost = ((dims[2] - l) / SIGMA_LENGTH) ** 2
-    if (not small and obj.height.min() > LOW_RETURNS * dims[0]
-            and box.bbox[3] < view.image_size[1] - 2.0):
-        T = _image_depth_check(T, dims, ry, box, view, plane)
-    return T, dims, pinned, length_cost
+    box7 = np.array([[T[0], T[1], T[2], dims[0], dims[1], dims[2], ry]])
+    return T, dims, pinned, side_misfit(box7, P, bbox, width)[0], length_cost
 
 
 def _image_depth_check(T: np.ndarray, dims: np.ndarray, ry: float, box: Box2D, view: _View,
@@ -214,7 +247,7 @@ def _image_depth_check(T: np.ndarray, dims: np.ndarray, ry: float, box: Box2D, v
     depth by a metre at 30 m, so it is taken on both the road under the object and the frame's
     plane, and the farther of the two is used (a sparse scan's local road may have taken a sill
     for the road; the frame's plane misses a real road's slope at distance)."""
-    sensor = view.sensor[[0, 2]]
+    sensor = view.sensor_xz
     ray = T[[0, 2]] - sensor
     d_fit = np.linalg.norm(ray)
     d_img = 0.0
@@ -237,13 +270,13 @@ def lift_fit(boxes: list[Box2D], priors: list[Prior], pts: FramePoints, calib: C
     """One Lifted per box. `road`: the scan's road (`lifter.road.LocalRoad`: the plane under each
     box) or one plane (a, b, c, d; rect frame)."""
     road = FixedRoad(road) if isinstance(road, np.ndarray) else road
-    view = _View(calib, image_size, cam, outline, pts.sensor, road.plane)
+    view = _View(calib, image_size, cam, outline, pts.sensor[[0, 2]], road.plane)
     c, dirs = camera_rays(view.P, np.array([[b.centre[0], b.bbox[3]] for b in boxes]))
     rays = [(c, d) for d in dirs]  # under the middle of each box's bottom edge
     planes = [plane_on_ray(road, *ray) for ray in rays]
     # the returns that may belong to a road user (above their local road, checked per box)
     pool = np.flatnonzero(road.may_stand(pts.rect, ROAD_CUT, MAX_HEIGHT))
-    pool_uv = pts.uv[pool]
+    pool_u = pts.uv[pool, 0]  # image columns: the first test, and most returns fail it
     free = np.ones(len(pts.rect), dtype=bool)  # not yet claimed by a nearer box
     road_d = np.array([ray_depth(*ray, pl) for ray, pl in zip(rays, planes)])
     # confident boxes first, nearest first, and only they claim returns: a detector's low-score
@@ -251,18 +284,49 @@ def lift_fit(boxes: list[Box2D], priors: list[Prior], pts: FramePoints, calib: C
     confident = np.array([b.score >= CLAIM_MIN_SCORE for b in boxes])
     out: list[Lifted | None] = [None] * len(boxes)
     for i in np.lexsort((road_d, ~confident)):
-        x1, y1, x2, y2 = boxes[i].bbox
-        u, v = pool_uv[:, 0], pool_uv[:, 1]
-        cand = pool[(u >= x1) & (u <= x2) & (v >= y1) & (v <= y2)]
-        cand = cand[free[cand]]
-        hl = rowdot(pts.rect[cand], planes[i][:3]) + planes[i][3]
-        above = (hl > ROAD_CUT) & (hl < MAX_HEIGHT)
+        cand, hl = _frustum_returns(pts.rect, pts.uv, pool, pool_u, free, boxes[i].bbox,
+                                    planes[i])
         frame_d = ray_depth(*rays[i], road.plane)
-        out[i], claimed = _fit_box(boxes[i], priors[i], cand[above], hl[above], pts, view,
-                                   planes[i], road_d[i], frame_d)
+        out[i], claimed = _fit_box(boxes[i], priors[i], cand, hl, pts, view, planes[i], road_d[i],
+                                   frame_d)
         if confident[i] and claimed is not None:
             free[claimed] = False
     return out  # type: ignore[return-value]
+
+
+@numba.njit(cache=True, nogil=True)
+def _frustum_returns(rect: np.ndarray, uv: np.ndarray, pool: np.ndarray, pool_u: np.ndarray,
+                     free: np.ndarray, bbox: np.ndarray,
+                     plane: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Steps 0-1 for one box: the returns of `pool` (image columns pool_u) not yet claimed whose
+    pixel lies in bbox [x1, y1, x2, y2] and that lie ROAD_CUT..MAX_HEIGHT above `plane`, and their
+    heights. One pass over the pool: numpy's masks and gathers over it, per box, were a tenth of
+    `fit`'s time."""
+    idx, hl = np.empty(len(pool), dtype=np.int64), np.empty(len(pool))
+    n = 0
+    for j in range(len(pool)):
+        if not bbox[0] <= pool_u[j] <= bbox[2]:
+            continue
+        i = pool[j]
+        if bbox[1] <= uv[i, 1] <= bbox[3] and free[i]:
+            h = rect[i, 0] * plane[0] + rect[i, 1] * plane[1] + rect[i, 2] * plane[2] + plane[3]
+            if ROAD_CUT < h < MAX_HEIGHT:
+                idx[n], hl[n] = i, h
+                n += 1
+    return idx[:n].copy(), hl[:n].copy()
+
+
+@numba.njit(cache=True, nogil=True)
+def _bev(rect: np.ndarray, uv: np.ndarray, idx: np.ndarray,
+         sensor_xz: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The returns rect[idx] in bird's-eye view (x, z), their image columns and their bird's-eye
+    range from the sensor."""
+    xz, u, rng = np.empty((len(idx), 2)), np.empty(len(idx)), np.empty(len(idx))
+    for k in range(len(idx)):
+        xz[k, 0], xz[k, 1], u[k] = rect[idx[k], 0], rect[idx[k], 2], uv[idx[k], 0]
+        dx, dz = xz[k, 0] - sensor_xz[0], xz[k, 1] - sensor_xz[1]
+        rng[k] = np.sqrt(dx * dx + dz * dz)
+    return xz, u, rng
 
 
 def _fit_box(box: Box2D, prior: Prior, cand: np.ndarray, height: np.ndarray, pts: FramePoints,
@@ -272,19 +336,17 @@ def _fit_box(box: Box2D, prior: Prior, cand: np.ndarray, height: np.ndarray, pts
     box and the returns it claims (None for the image-only fallback)."""
     if len(cand) < MIN_POINTS:
         return _fallback(box, prior, view, plane), None
-    xz = pts.rect[cand][:, [0, 2]]
+    xz, u, rng = _bev(pts.rect, pts.uv, cand, view.sensor_xz)
     # the road under the box may be off: the frame's plane's depth for it (frame_d) bounds how far
     sigma = float(np.hypot(_depth_sigma(road_d), road_d - frame_d))
     if box.bbox[3] >= view.image_size[1] - 2.0:  # bottom cut by the border: the road depth only bounds
         sigma = max(sigma, road_d)
-    best, best_score = object_returns(xz, pts.uv[cand, 0],
-                                      np.linalg.norm(xz - view.sensor[[0, 2]], axis=1),
-                                      max(box.bbox[2] - box.bbox[0], 1.0), road_d, sigma,
-                                      float(np.hypot(prior.dims[2], prior.dims[1])),
+    best, best_score = object_returns(xz, u, rng, max(box.bbox[2] - box.bbox[0], 1.0), road_d,
+                                      sigma, float(np.hypot(prior.dims[2], prior.dims[1])),
                                       float(min(prior.dims[1], prior.dims[2])))
     if best_score < 0.02:
         return _fallback(box, prior, view, plane), None
-    obj = _Returns(xz[best], pts.uv[cand[best], 0], height[best])
+    obj = _Returns(xz[best], u[best], height[best])
     c = obj.centroid
     ry_prior = float(wrap_angle(prior.alpha + np.arctan2(c[0], c[1])))
     small = box.type in SMALL_CLASSES
@@ -293,7 +355,7 @@ def _fit_box(box: Box2D, prior: Prior, cand: np.ndarray, height: np.ndarray, pts
     # claim this object's returns so a farther box does not take them as its own
     grown = np.array([T[0], T[1] + CLAIM_MARGIN, T[2], h + 2 * CLAIM_MARGIN,
                       w + 2 * CLAIM_MARGIN, l + 2 * CLAIM_MARGIN, ry])
-    claimed = cand[_in_box_bev(pts.rect[cand], grown)]
+    claimed = _in_box_bev(pts.rect, cand, grown)
     # ranking: many returns and faces that pin the box down make a fit trustworthy, and a box that
     # needed its yaw, length or 2D sides far from what the evidence says less so
     quality = ((0.5 + 0.5 * min(1.0, len(obj.xz) / 30)) * (0.6 + 0.2 * pinned)
@@ -313,34 +375,46 @@ def _best_yaw(obj: _Returns, prior: Prior, ry_prior: float, small: bool, box: Bo
     # narrows above the belt line), so the returns below it give the L-shape where enough do
     body = obj.xz[obj.height < BELT_LINE * prior.dims[0]]
     body = body if len(body) >= MIN_LSHAPE else obj.xz
-    ry = ry_prior if small or len(body) < MIN_LSHAPE else fit_yaw(body, ry_prior)
-    hyps = [(ry, 0.0)]
-    if not small:
-        perp = ry + np.pi / 2 * np.array([1.0, -1.0, 1.0, -1.0]) + np.array([0, 0, np.pi, np.pi])
-        perp = float(wrap_angle(perp[np.argmin(np.abs(wrap_angle(perp - ry_prior)))]))
-        # the network's own yaw too: a real car's rounded corners and short L legs can leave the
-        # L-shape a few degrees off at hardly any cost in how well a rectangle fits the returns,
-        # and the 2D box's sides then show it
-        hyps = [(ry, float(wrap_angle(2 * (ry - ry_prior)) / 2)), (ry_prior, 0.0),
-                (perp, float(wrap_angle(2 * (perp - ry_prior)) / 2))]
-        if abs(hyps[0][1]) < SAME_YAW:  # the L-shape agrees with the network: nothing to weigh
-            del hyps[1]
-    pts = np.ascontiguousarray(body[:: -(-len(body) // MAX_LSHAPE_POINTS)])
-    rms_best = _rect_rms(pts, ry) if len(pts) >= MIN_LSHAPE else 0.0
+    yaws, costs = _yaw_hypotheses(body, ry_prior, small)
     best_fit, best_cost = None, np.inf
-    for ry_h, off in hyps:
-        cost = (off / SIGMA_YAW_PRIOR) ** 2
-        if len(pts) >= MIN_LSHAPE and ry_h != ry:  # how much worse a rectangle fits the returns
-            cost += ((_rect_rms(pts, ry_h) - rms_best) / SIGMA_RECT) ** 2
+    for ry_h, cost in zip(yaws.tolist(), costs.tolist()):
         if cost >= best_cost:  # its misfit to the 2D box could only add to that
             continue
-        T_h, dims_h, pinned_h, length_cost = _box_for_yaw(ry_h, obj, prior, small, box, view, plane)
-        misfit = side_misfit(np.array([[*T_h, *dims_h, ry_h]]), view.P, box.bbox,
-                             view.image_size[0])[0]
-        cost += misfit / SIGMA_SIDE_PX ** 2 + length_cost
+        T_h, dims_h, pinned_h, fit_cost = _box_for_yaw(ry_h, obj, prior, small, box, view, plane)
+        cost += fit_cost
         if cost < best_cost:
             best_fit, best_cost = (ry_h, T_h, dims_h, pinned_h, cost), cost
     return best_fit
+
+
+@numba.njit(cache=True, nogil=True)
+def _yaw_hypotheses(body: np.ndarray, ry_prior: float,
+                    small: bool) -> tuple[np.ndarray, np.ndarray]:
+    """`_best_yaw`'s yaws, the L-shape's first, and what each costs before its box is placed: its
+    distance from the network's yaw and how much worse a rectangle fits the returns."""
+    ry = ry_prior if small or len(body) < MIN_LSHAPE else fit_yaw(body, ry_prior)
+    if small:
+        yaws, offs = np.array([ry]), np.array([0.0])
+    else:
+        best, perp = np.inf, 0.0  # of the L-shape's other axis, the direction nearest the network's
+        for k in range(4):
+            p = ry + np.pi / 2 * (1.0 - 2.0 * (k % 2)) + np.pi * (k // 2)
+            if abs(_wrap(p - ry_prior)) < best:
+                best, perp = abs(_wrap(p - ry_prior)), _wrap(p)
+        # the network's own yaw too: a real car's rounded corners and short L legs can leave the
+        # L-shape a few degrees off at hardly any cost in how well a rectangle fits the returns,
+        # and the 2D box's sides then show it
+        yaws = np.array([ry, ry_prior, perp])
+        offs = np.array([_wrap(2 * (ry - ry_prior)) / 2, 0.0, _wrap(2 * (perp - ry_prior)) / 2])
+        if abs(offs[0]) < SAME_YAW:  # the L-shape agrees with the network: nothing to weigh
+            yaws, offs = yaws[::2].copy(), offs[::2].copy()
+    pts = body[:: -(-len(body) // MAX_LSHAPE_POINTS)]
+    rms_best = _rect_rms(pts, ry) if len(pts) >= MIN_LSHAPE else 0.0
+    costs = (offs / SIGMA_YAW_PRIOR) ** 2
+    for k in range(len(yaws)):
+        if len(pts) >= MIN_LSHAPE and yaws[k] != ry:  # how much worse a rectangle fits the returns
+            costs[k] += ((_rect_rms(pts, yaws[k]) - rms_best) / SIGMA_RECT) ** 2
+    return yaws, costs
 
 
 @numba.njit(cache=True, nogil=True)
@@ -359,9 +433,12 @@ def _rect_rms(xz: np.ndarray, ry: float) -> float:
     return np.sqrt(total / len(xz))
 
 
-def _in_box_bev(p: np.ndarray, b: np.ndarray) -> np.ndarray:
-    d = p[:, [0, 2]] - b[[0, 2]]
+@numba.njit(cache=True, nogil=True)
+def _in_box_bev(rect: np.ndarray, idx: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Those of the returns rect[idx] inside the box b [x, y, z, h, w, l, ry] in bird's-eye view."""
     c, s = np.cos(b[6]), np.sin(b[6])
-    a = d[:, 0] * c - d[:, 1] * s
-    lat = d[:, 0] * s + d[:, 1] * c
-    return (np.abs(a) <= b[5] / 2) & (np.abs(lat) <= b[4] / 2)
+    inside = np.empty(len(idx), dtype=np.bool_)
+    for k in range(len(idx)):
+        dx, dz = rect[idx[k], 0] - b[0], rect[idx[k], 2] - b[2]
+        inside[k] = abs(dx * c - dz * s) <= b[5] / 2 and abs(dx * s + dz * c) <= b[4] / 2
+    return idx[inside]

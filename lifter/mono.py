@@ -20,7 +20,10 @@ centimetres of predicted width or length error into a metre of depth error at 40
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cache
+from itertools import product
 
+import numba
 import numpy as np
 
 from kitti.boxes import UNIT_CORNERS, box_corners, wrap_angle
@@ -65,7 +68,8 @@ class MonoSolution:
 def ground_point(u: float, v: float, calib: Calibration, plane: np.ndarray, cam: int = 2) -> np.ndarray:
     """Where the ray through pixel (u, v) meets the road plane (rect frame); the closed-form inverse
     of 004's camera model for a known height."""
-    o, p1 = calib.image_to_rect(np.array([[u, v], [u, v]]), np.array([0.0, 1.0]), cam)
+    P = calib.P(cam)
+    o, p1 = _pixel_at_depth(P, u, v, 0.0), _pixel_at_depth(P, u, v, 1.0)
     d = p1 - o
     denom = d @ plane[:3]
     if abs(denom) < 1e-12:
@@ -73,15 +77,21 @@ def ground_point(u: float, v: float, calib: Calibration, plane: np.ndarray, cam:
     return o - (o @ plane[:3] + plane[3]) / denom * d
 
 
-def _grid(choices: list[np.ndarray]) -> np.ndarray:
-    """(K, len(choices)) every combination of one corner per constrained side."""
-    mesh = np.meshgrid(*choices, indexing="ij")
-    return np.stack([m.ravel() for m in mesh], axis=1)
+@numba.njit(cache=True, nogil=True)
+def _pixel_at_depth(P: np.ndarray, u: float, v: float, z: float) -> np.ndarray:
+    """`Calibration.image_to_rect` of one pixel (the same arithmetic) as a kernel: numpy's version
+    spends tens of microseconds on one pixel, and a fallback box asks for three."""
+    a, b = P[0] - u * P[2], P[1] - v * P[2]
+    ra, rb = -(a[2] * z + a[3]), -(b[2] * z + b[3])
+    det = a[0] * b[1] - a[1] * b[0]
+    return np.array([(ra * b[1] - a[1] * rb) / det, (a[0] * rb - ra * b[0]) / det, z])
 
 
-def _project(pts: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    hom = np.einsum("...j,ij->...i", pts, P[:, :3]) + P[:, 3]
-    return hom[..., :2] / hom[..., 2:3], hom[..., 2]
+@cache
+def _grid(choices: tuple[tuple[int, ...], ...]) -> np.ndarray:
+    """(K, len(choices)) every combination of one corner per constrained side, the last side's
+    fastest. Cached: a handful of side sets recur (not to be written to)."""
+    return np.array(list(product(*choices)), dtype=np.int64).reshape(-1, len(choices))
 
 
 def _up(plane: np.ndarray) -> np.ndarray:
@@ -99,12 +109,23 @@ def standing_corners(h: float, w: float, l: float, rotation_y: float,
     but the object it stands for is upright on the road, and that is what the image shows."""
     if up is None:
         return box_corners(np.array([[0, 0, 0, h, w, l, rotation_y]]))[0]
+    return _standing(float(h), float(w), float(l), float(rotation_y), np.asarray(up, dtype=float))
+
+
+@numba.njit(cache=True, nogil=True)
+def _standing(h: float, w: float, l: float, rotation_y: float, up: np.ndarray) -> np.ndarray:
+    """`standing_corners` on a surface: a kernel, as `_place` asks for it twice per yaw tried."""
     c, s = np.cos(rotation_y), np.sin(rotation_y)
     head = np.array([c, (up[2] * -s + up[0] * c) / -up[1], -s])  # in the surface: up . head = 0
-    head /= np.linalg.norm(head)
-    side = np.cross(up, head)
-    u = UNIT_CORNERS  # its y runs down (0 to -1): the height goes along -y, here along `up`
-    return np.outer(u[:, 0] * l, head) - np.outer(u[:, 1] * h, up) + np.outer(u[:, 2] * w, side)
+    head /= np.sqrt(head[0] * head[0] + head[1] * head[1] + head[2] * head[2])
+    side = np.array([up[1] * head[2] - up[2] * head[1], up[2] * head[0] - up[0] * head[2],
+                     up[0] * head[1] - up[1] * head[0]])  # up x head
+    out = np.empty((8, 3))
+    for k in range(8):  # the unit corners' y runs down (0 to -1): the height goes along `up`
+        for j in range(3):
+            out[k, j] = (UNIT_CORNERS[k, 0] * l * head[j] - UNIT_CORNERS[k, 1] * h * up[j]
+                         + UNIT_CORNERS[k, 2] * w * side[j])
+    return out
 
 
 @dataclass
@@ -117,13 +138,13 @@ class _Outline:
     image_size: tuple[int, int]
     bbox: np.ndarray           # [x1, y1, x2, y2] as floats
     up: np.ndarray | None      # the road's normal (None: no road plane)
-    rows: list[np.ndarray]     # per constrained side, its (4,) row P[axis] - s P[2] (scaled)
-    on_feet: list[bool]        # the side is the bottom edge: touched by a ground contact
+    rows: np.ndarray           # (sides, 4) per constrained side, its row P[axis] - s P[2] (scaled)
+    on_feet: np.ndarray        # (sides,) the side is the bottom edge: touched by a ground contact
     A_pinv: np.ndarray         # (3, k) pseudo-inverse of the sides' rows and the road's (last)
-    plane_rhs: np.ndarray | None  # (8,) the road row's right-hand side
+    plane_rhs: np.ndarray      # (8,) the road row's right-hand side ((0,): no road plane)
     combos: np.ndarray         # (K, k) every corner assignment (bottom column: set per yaw)
-    bottom_col: int | None     # column of combos that is the lowest ground contact
-    ground: np.ndarray | None  # road point under the bottom edge's middle
+    bottom_col: int            # column of combos that is the lowest ground contact (-1: none)
+    ground: np.ndarray         # road point under the bottom edge's middle (NaN: no road plane)
 
 
 def _outline(bbox: np.ndarray, calib: Calibration, image_size: tuple[int, int],
@@ -155,7 +176,7 @@ def _outline(bbox: np.ndarray, calib: Calibration, image_size: tuple[int, int],
         on_feet.append(bottom)
         choices.append(corner_set)
     A = [r[:3] for r in rows]
-    plane_rhs = ground = bottom_col = None
+    plane_rhs, ground, bottom_col = np.zeros(0), np.full(3, np.nan), -1
     if plane is not None:
         n = np.asarray(plane, dtype=float)
         scale = PLANE_WEIGHT * P[0, 0]  # a metre of plane error ~ f pixels at 1 m
@@ -163,44 +184,85 @@ def _outline(bbox: np.ndarray, calib: Calibration, image_size: tuple[int, int],
         plane_rhs = np.full(8, -n[3] * scale)
         choices.append(np.zeros(1, dtype=int))
         ground = ground_point(0.5 * (x1 + x2), y2, calib, plane, cam)
-        bottom_col = next((i for i, b in enumerate(on_feet) if b), None)
+        bottom_col = next((i for i, b in enumerate(on_feet) if b), -1)
     if len(A) < 3:
         raise ValueError(f"box {np.asarray(bbox).tolist()} leaves {len(A)} constraints; "
                          f"3 are needed")
     return _Outline(P, image_size, np.array([x1, y1, x2, y2]), None if plane is None else _up(plane),
-                    rows, on_feet, np.linalg.pinv(np.array(A)), plane_rhs,
-                    _grid(choices), bottom_col, ground)
+                    np.array(rows).reshape(-1, 4), np.array(on_feet, dtype=bool),
+                    np.linalg.pinv(np.array(A)), plane_rhs,
+                    _grid(tuple(tuple(c.tolist()) for c in choices)), bottom_col, ground)
 
 
 def _place(o: _Outline, dims: np.ndarray, rotation_y: float,
            contact: tuple[float, float]) -> MonoSolution:
     """The translation of the box (dims, yaw) whose projection best fits the outline."""
     h, w, l = (float(v) for v in dims)
-    P = o.P
-    W, H = o.image_size
     offs = standing_corners(h, w, l, rotation_y, o.up)  # (8, 3) from the bottom centre
     feet = standing_corners(h, w * contact[1], l * contact[0], rotation_y, o.up)
-    rhs_sets = [-((feet if bottom else offs) @ r[:3] + r[3]) for r, bottom in zip(o.rows, o.on_feet)]
-    if o.plane_rhs is not None:
-        rhs_sets.append(o.plane_rhs)
-    combos = o.combos
-    if o.bottom_col is not None:
-        # which ground contact projects lowest depends on the yaw, hardly on the position: the feet
-        # placed around the road point under the bottom edge decide it
-        v = _project(o.ground + feet[_BOTTOM], P)[0][:, 1]
-        combos = combos.copy()
-        combos[:, o.bottom_col] = _BOTTOM[int(np.argmax(v))]
-    B = np.stack([rhs_sets[i][combos[:, i]] for i in range(len(rhs_sets))], axis=0)  # (k, K)
-    T = np.einsum("ij,jk->ki", o.A_pinv, B)  # (K, 3); einsum: no BLAS threads
-    uv, z = _project(T[:, None, :] + offs[None], P)  # (K, 8, 2) box corners
-    lo, hi = uv.min(axis=1), uv.max(axis=1)
-    foot_v = _project(T[:, None, :] + feet[None, _BOTTOM], P)[0][..., 1].max(axis=1)  # contact row
-    proj = np.stack([np.clip(lo[:, 0], 0, W - 1), np.clip(lo[:, 1], 0, H - 1),
-                     np.clip(hi[:, 0], 0, W - 1), np.clip(foot_v, 0, H - 1)], axis=1)
-    err = np.abs(proj - o.bbox).mean(axis=1)
-    err = np.where((z > 0.1).all(axis=1), err, np.inf)
-    best = int(np.argmin(err))
-    return MonoSolution(T[best], float(rotation_y), float(err[best]))
+    T, err = _best_assignment(o.rows, o.on_feet, o.A_pinv, o.plane_rhs, o.combos, o.bottom_col,
+                              o.ground, offs, feet, o.P, o.image_size[0], o.image_size[1], o.bbox)
+    return MonoSolution(T, float(rotation_y), err)
+
+
+@numba.njit(cache=True, nogil=True)
+def _project_point(T: np.ndarray, o: np.ndarray, P: np.ndarray) -> tuple[float, float, float]:
+    """Pixel (u, v) and depth of the point T + o (both (3,))."""
+    x, y, z = T[0] + o[0], T[1] + o[1], T[2] + o[2]
+    u = x * P[0, 0] + y * P[0, 1] + z * P[0, 2] + P[0, 3]
+    v = x * P[1, 0] + y * P[1, 1] + z * P[1, 2] + P[1, 3]
+    d = x * P[2, 0] + y * P[2, 1] + z * P[2, 2] + P[2, 3]
+    return u / d, v / d, d
+
+
+@numba.njit(cache=True, nogil=True)
+def _best_assignment(rows: np.ndarray, on_feet: np.ndarray, A_pinv: np.ndarray,
+                     plane_rhs: np.ndarray, combos: np.ndarray, bottom_col: int,
+                     ground: np.ndarray, offs: np.ndarray, feet: np.ndarray, P: np.ndarray,
+                     W: int, H: int, bbox: np.ndarray) -> tuple[np.ndarray, float]:
+    """`_place`'s search: every corner assignment's translation through the pseudo-inverse, and
+    the mean distance of its projected box (the contact's row at the bottom) to the 2D box; the
+    best one. A kernel: numpy spent it in call overhead, several yaws per box."""
+    k = A_pinv.shape[1]
+    rhs = np.empty((k, 8))  # per row, the right-hand side of each corner touching its side
+    for i in range(len(rows)):
+        pts = feet if on_feet[i] else offs
+        for c in range(8):
+            rhs[i, c] = -(pts[c, 0] * rows[i, 0] + pts[c, 1] * rows[i, 1] + pts[c, 2] * rows[i, 2]
+                          + rows[i, 3])
+    if len(plane_rhs):
+        rhs[k - 1] = plane_rhs
+    lowest = -1  # which ground contact projects lowest depends on the yaw, hardly on the position:
+    if bottom_col >= 0:  # the feet placed around the road point under the bottom edge decide it
+        v_max = -np.inf
+        for c in range(4):
+            v = _project_point(ground, feet[c], P)[1]
+            if v > v_max:
+                v_max, lowest = v, c
+    best_T, best_err = np.zeros(3), np.inf
+    b, T = np.empty(k), np.empty(3)
+    for m in range(len(combos)):
+        for i in range(k):
+            b[i] = rhs[i, lowest if i == bottom_col else combos[m, i]]
+        for a in range(3):
+            T[a] = 0.0
+            for i in range(k):
+                T[a] += A_pinv[a, i] * b[i]
+        u_lo, v_lo, u_hi, foot_v = np.inf, np.inf, -np.inf, -np.inf
+        ahead = True
+        for c in range(8):
+            u, v, z = _project_point(T, offs[c], P)
+            u_lo, v_lo, u_hi = min(u_lo, u), min(v_lo, v), max(u_hi, u)
+            ahead &= z > 0.1
+            if c < 4:
+                foot_v = max(foot_v, _project_point(T, feet[c], P)[1])
+        err = (abs(min(max(u_lo, 0), W - 1) - bbox[0]) + abs(min(max(v_lo, 0), H - 1) - bbox[1])
+               + abs(min(max(u_hi, 0), W - 1) - bbox[2])
+               + abs(min(max(foot_v, 0), H - 1) - bbox[3])) / 4
+        if m == 0 or (ahead and err < best_err):
+            best_T[:] = T
+            best_err = err if ahead else np.inf
+    return best_T, best_err
 
 
 def solve_translation(dims: np.ndarray, rotation_y: float, bbox: np.ndarray, calib: Calibration,
@@ -227,7 +289,7 @@ def solve_from_alpha(dims: np.ndarray, alpha: float, bbox: np.ndarray, calib: Ca
     ray angle moves little with the translation: converges in a few steps)."""
     u = 0.5 * (bbox[0] + bbox[2])
     v = 0.5 * (bbox[1] + bbox[3])
-    ray = calib.image_to_rect(np.array([[u, v]]), np.array([10.0]), cam)[0]
+    ray = _pixel_at_depth(calib.P(cam), u, v, 10.0)
     ry = float(wrap_angle(alpha + np.arctan2(ray[0], ray[2])))
     outline = _outline(bbox, calib, image_size, plane, cam, cut_ok)
     sol = _place(outline, dims, ry, contact)

@@ -371,11 +371,12 @@ def plane_on_ray(road: LocalRoad | FixedRoad, c: np.ndarray, d: np.ndarray,
     return road.plane_on_ray(c, d, iters)
 
 
+@numba.njit(cache=True, nogil=True)
 def ray_depth(c: np.ndarray, d: np.ndarray, plane: np.ndarray, far: float = 200.0) -> float:
     """Bird's-eye distance from the camera to where the ray c + t d meets `plane` (`far` when it
-    does not, or beyond that)."""
-    rate = plane[:3] @ d
+    does not, or beyond that). A kernel: `fit` asks it twice per box."""
+    rate = plane[0] * d[0] + plane[1] * d[1] + plane[2] * d[2]
     if rate >= -1e-9:
         return far
-    x = c + (-(plane[:3] @ c + plane[3]) / rate) * d
-    return float(min(np.hypot(x[0], x[2]), far))
+    t = -(plane[0] * c[0] + plane[1] * c[1] + plane[2] * c[2] + plane[3]) / rate
+    return min(np.hypot(c[0] + t * d[0], c[2] + t * d[2]), far)
