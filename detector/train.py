@@ -48,7 +48,8 @@ class TrainConfig:
     activation: str = "hardswish"
     box_loss: str = "diou"
     augment: AugmentConfig = field(default_factory=AugmentConfig)
-    close_mosaic: int = 3        # last epochs trained on plain letterboxed images (+ flips, colour)
+    close_mosaic: int = 3        # last epochs on plain letterboxed images, flips, HSV and photometric
+                                 # set kept (AugmentConfig.closing: why)
     train_split: str | None = "train"  # ImageSets name; None: every frame of the root
     val_split: str | None = "val"      # likewise, for the per-epoch evaluation
     val_data: str | None = None        # evaluation root (default: the training root)
@@ -220,8 +221,7 @@ def _train_epoch(cfg: TrainConfig, epoch: int, n: int, model: FlexiNet, criterio
     nb = math.ceil(n / cfg.batch)
     warmup_iters = max(round(cfg.warmup_epochs * nb), 1)
     model.train()
-    acfg = cfg.augment if epoch < cfg.epochs - cfg.close_mosaic else \
-        replace(AugmentConfig.off(), fliplr=cfg.augment.fliplr, hsv=cfg.augment.hsv)
+    acfg = cfg.augment if epoch < cfg.epochs - cfg.close_mosaic else cfg.augment.closing()
     order = np.random.default_rng([cfg.seed, epoch, 1 << 20]).permutation(n)
     sums = torch.zeros(4)
     bar = tqdm(range(nb), desc=f"epoch {epoch + 1}/{cfg.epochs}", disable=not cfg.progress, leave=False)

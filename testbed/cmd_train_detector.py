@@ -35,12 +35,28 @@ def _split(value: str) -> str | None:
 @click.option("--scale", default=0.4, show_default=True, type=click.FloatRange(0, 0.99), help="Zoom +- range.")
 @click.option("--fliplr", default=0.5, show_default=True, type=click.FloatRange(0, 1))
 @click.option("--hsv/--no-hsv", default=True, show_default=True, help="Colour jitter.")
+@click.option("--photometric/--no-photometric", default=True, show_default=True,
+              help="Sim-to-real photometric set: white balance, contrast, gamma, greyscale, blur, sensor noise, "
+                   "JPEG, cut-out (detector/augment.py).")
+@click.option("--wb-gain", default=0.1, show_default=True, type=click.FloatRange(0, 1, max_open=True),
+              help="Per-channel white-balance gain drawn from 1 +- this.")
+@click.option("--blur-sigma", nargs=2, default=(0.3, 1.5), show_default=True, type=click.FloatRange(0),
+              help="Gaussian blur sigma range LOW HIGH, in pixels of a 1242-wide KITTI frame.")
+@click.option("--noise-prob", default=0.5, show_default=True, type=click.FloatRange(0, 1),
+              help="Probability of Poisson-Gaussian sensor noise.")
+@click.option("--noise-full-well", nargs=2, default=(3000.0, 20000.0), show_default=True,
+              type=click.FloatRange(1), help="Full-well range LOW HIGH (electrons at white); lower is noisier.")
+@click.option("--jpeg-prob", default=0.2, show_default=True, type=click.FloatRange(0, 1),
+              help="Probability of a JPEG re-encode (quality 50-95).")
+@click.option("--cutout-prob", default=0.25, show_default=True, type=click.FloatRange(0, 1),
+              help="Probability of 1-3 grey/noise rectangles (no box covered more than half).")
 @click.option("--mixup", default="none", show_default=True, type=click.Choice(["none", "mixup", "thresholded"]),
               help="004 Mixup: plain, or only when the two images' boxes overlap below --mixup-iou.")
 @click.option("--mixup-prob", default=0.5, show_default=True, type=click.FloatRange(0, 1))
 @click.option("--mixup-iou", default=0.4, show_default=True, type=click.FloatRange(0, 1))
 @click.option("--close-mosaic", default=3, show_default=True, type=click.IntRange(0),
-              help="Last epochs without mosaic/zoom (plain letterboxed images).")
+              help="Last epochs without mosaic/zoom/Mixup (plain letterboxed images; flips, HSV and "
+                   "the photometric set stay as set).")
 @click.option("--train-split", default="train", show_default=True, help="ImageSets name, or 'all'.")
 @click.option("--val-data", type=click.Path(exists=True, file_okay=False, path_type=Path),
               help="Evaluation root [default: the first --data].")
@@ -55,7 +71,9 @@ def _split(value: str) -> str | None:
 def train_detector(data: tuple[Path, ...], out: Path, preset: str, epochs: int, img_size, batch: int, lr: float,
                    momentum: float, weight_decay: float, schedule: str, warmup_epochs: float,
                    activation: str, box_loss: str, mosaic: float, scale: float, fliplr: float, hsv: bool,
-                   mixup: str, mixup_prob: float, mixup_iou: float, close_mosaic: int, train_split: str,
+                   photometric: bool, wb_gain: float, blur_sigma: tuple[float, float], noise_prob: float,
+                   noise_full_well: tuple[float, float], jpeg_prob: float, cutout_prob: float, mixup: str,
+                   mixup_prob: float, mixup_iou: float, close_mosaic: int, train_split: str,
                    val_data: Path | None, val_split: str, eval_every: int, init_weights: Path | None,
                    seed: int, threads: int, resume: bool) -> None:
     """Train the FlexiNet 2D detector (Car incl. Van, Pedestrian, Cyclist) on DATA (one or more
@@ -67,6 +85,9 @@ def train_detector(data: tuple[Path, ...], out: Path, preset: str, epochs: int, 
     try:
         aug = AugmentConfig(mosaic=mosaic, scale=scale, fliplr=fliplr,
                             hsv=AugmentConfig().hsv if hsv else (0.0, 0.0, 0.0),
+                            photometric=photometric, gain=wb_gain, blur_sigma=tuple(blur_sigma),
+                            noise_prob=noise_prob, noise_full_well=tuple(noise_full_well),
+                            jpeg_prob=jpeg_prob, cutout_prob=cutout_prob,
                             mixup=mixup, mixup_prob=mixup_prob, mixup_iou=mixup_iou)
         cfg = TrainConfig(data=tuple(str(d) for d in data), out=str(out), preset=preset, epochs=epochs,
                           img_size=tuple(img_size) if img_size else None, batch=batch, lr=lr,
