@@ -1,8 +1,9 @@
 """Camera rendering speed and complete-frame throughput of the scene generator.
 
 Prints (1) the world sampling time (scenery and actor meshes) and the render time per 1242x375
-frame of scenes/urban.yaml, split into scene build, colour pass (4x MSAA) and
-segmentation+depth pass, the look (fog/rain/sensor) and the label derivation; (2) complete frames per second (sample + render + labels + all files, no LiDAR,
+frame of scenes/urban.yaml, split into scene build, colour pass (4x MSAA),
+segmentation+depth pass, sun shadows (Embree), the look and camera (fog/rain/sensor, exposure,
+noise, demosaicing) and the label derivation; (2) complete frames per second (sample + render + labels + all files, no LiDAR,
 and with the spec's LiDAR) of `simgen.generate` with 1 and 2 worker processes.
 
     .venv/bin/python benchmarks/bench_render.py [--frames N] [--spec scenes/urban.yaml]
@@ -23,7 +24,7 @@ from simgen.factors import factor_rng
 from simgen.generate import generate
 from simgen.labels import derive
 from simgen.look import apply_look
-from simgen.render import build_scene, renderer
+from simgen.render import HEADROOM, build_scene, renderer, shade
 from simgen.sample import sample_world
 from simgen.spec import load_spec
 from testbed.backends import LocalBackend
@@ -36,7 +37,7 @@ def render_breakdown(spec, n: int) -> None:
     r = renderer(worlds[0].rig.width, worlds[0].rig.height)
     scene, _, flags = build_scene(worlds[0])  # warm-up: shaders compile on the first render
     r.render(scene, flags=flags)
-    t = {"build": [], "colour": [], "seg+depth": [], "look": [], "labels": []}
+    t = {"build": [], "colour": [], "seg+depth": [], "shadows": [], "look": [], "labels": []}
     for w in worlds:
         t0 = time.perf_counter()
         scene, seg, flags = build_scene(w)
@@ -45,14 +46,17 @@ def render_breakdown(spec, n: int) -> None:
         t2 = time.perf_counter()
         ids, depth = r.render(scene, flags=RenderFlags.SEG, seg_node_map=seg)
         t3 = time.perf_counter()
-        apply_look(color[..., :3], depth, w.rig.intrinsics(), w.weather, w.light, w.sensor,
-                   factor_rng(0, 0, "look"))
+        lit = bool(flags & RenderFlags.RGBA)
+        rgb = shade(w, color, depth) if lit else color[..., :3]
         t4 = time.perf_counter()
+        apply_look(rgb, depth, w.rig.intrinsics(), w.weather, w.light, w.sensor,
+                   factor_rng(0, 0, "look"), HEADROOM if lit else 1.0, w.camera)
+        t5 = time.perf_counter()
         inst = ids[..., 0].astype(np.uint16) + 256 * ids[..., 1].astype(np.uint16)
         derive(w, inst, spec.labels)
-        t5 = time.perf_counter()
+        t6 = time.perf_counter()
         for k, a, b in (("build", t0, t1), ("colour", t1, t2), ("seg+depth", t2, t3),
-                        ("look", t3, t4), ("labels", t4, t5)):
+                        ("shadows", t3, t4), ("look", t4, t5), ("labels", t5, t6)):
             t[k].append(1000 * (b - a))
     actors = np.mean([len(w.actors) for w in worlds])
     print(f"{spec.name}: {n} frames of {worlds[0].rig.width}x{worlds[0].rig.height}, "
@@ -60,8 +64,8 @@ def render_breakdown(spec, n: int) -> None:
     print(f"  {'sample':10s} {sample_ms:7.1f} ms mean (simgen.sample_world: scenery and actor meshes)")
     for k, v in t.items():
         print(f"  {k:10s} {np.median(v):7.1f} ms median  {np.mean(v):7.1f} ms mean")
-    render = np.array(t["build"]) + np.array(t["colour"]) + np.array(t["seg+depth"])
-    print(f"  RENDER (build + colour + seg/depth): {np.median(render):.1f} ms median per frame")
+    render = sum(np.array(t[k]) for k in ("build", "colour", "seg+depth", "shadows"))
+    print(f"  RENDER (build + colour + seg/depth + shadows): {np.median(render):.1f} ms median per frame")
 
 
 def throughput(spec, n: int, workers: int, lidar: bool) -> None:

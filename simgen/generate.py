@@ -98,7 +98,7 @@ def make_frame(job: Job) -> str:
     rig = world.rig
     look_rng = factor_rng(job.seed, job.index, "look")
     image = apply_look(out.color, out.depth, rig.intrinsics(), world.weather, world.light,
-                       world.sensor, look_rng)
+                       world.sensor, look_rng, out.headroom, world.camera)
     objects, truths = derive(world, out.instance, job.spec.labels)
     counts = None
     lidar_info = None

@@ -8,6 +8,8 @@ typical 2 mm drop (not drawn on thermal images); rain's own extinction is left t
 model. The sensor looks are
 emulations (003): night vision = luminance with automatic gain, photon noise, green phosphor
 and a tube vignette; thermal = the renderer's temperature image, blurred, with sensor noise.
+The normal colour camera's own response (exposure, white balance, vignetting, blur, colour
+filter array and noise) is simgen.camera, applied last.
 """
 
 from __future__ import annotations
@@ -15,7 +17,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from .world import Light, Weather
+from .camera import GAMMA, expose
+from .world import CameraResponse, Light, Weather
 
 AIRLIGHT = {"day": (0.78, 0.80, 0.83), "dusk": (0.52, 0.45, 0.42), "night": (0.04, 0.04, 0.05)}
 DROP_FALL_SPEED = 7.0  # m/s
@@ -74,15 +77,20 @@ def thermal(img: np.ndarray, rng: np.random.Generator) -> np.ndarray:
 
 
 def apply_look(color: np.ndarray, depth: np.ndarray, K: np.ndarray, weather: Weather, light: Light,
-               sensor: str, rng: np.random.Generator) -> np.ndarray:
-    """The final uint8 RGB image of a frame."""
-    img = color.astype(np.float64) / 255.0
+               sensor: str, rng: np.random.Generator, headroom: float = 1.0,
+               camera: CameraResponse | None = None) -> np.ndarray:
+    """The final uint8 RGB image of a frame. `color` is the renderer's gamma-encoded image of
+    linear radiance / `headroom`; with a `camera`, the normal sensor's image goes through it
+    (simgen.camera), else it is clipped and quantised as rendered."""
+    img = color.astype(np.float64) / 255.0 * headroom ** (1 / GAMMA)
     if weather.fog_extinction > 0:
         img = fog(img, depth, K, weather.fog_extinction, "night" if sensor == "thermal" else light.time)
     if weather.rain_rate > 0 and sensor != "thermal":  # long-wave infrared hardly sees streaks
         img = rain(img, weather.rain_rate, weather.wind, light.time, rng)
     if sensor == "night_vision":
-        img = night_vision(img, rng)
+        img = night_vision(np.clip(img, 0.0, 1.0), rng)
     elif sensor == "thermal":
         img = thermal(img, rng)
+    elif camera is not None:
+        return expose(np.clip(img, 0.0, None) ** GAMMA, K, camera, rng)
     return np.clip(np.round(img * 255.0), 0, 255).astype(np.uint8)

@@ -91,6 +91,14 @@ FOLIAGE = Material("foliage", (0.08, 0.20, 0.06), 0.33, incidence_exponent=0.0, 
 METAL = Material("pole", (0.30, 0.31, 0.33), 0.40)
 # Weathered wood: 0.4-0.5 at 905 nm (dry wood is NIR-bright; ECOSTRESS library).
 FENCE = Material("fence", (0.35, 0.30, 0.25), 0.45)
+# Traffic sign faces: retro-reflective sheeting of EN 12899-1 class RA1, the minimum for German
+# signs (VwV-StVO), as the plates: R_A at observation 0.2 deg, entrance 5 deg of white 70, yellow
+# 50, red 14.5, blue 4 cd lx^-1 m^-2, times pi; the fall with the entrance angle as the plates'
+# (cos^6). Colours: DIN 6171's traffic colours RAL 9016, 1023, 3020 and 5017, linear RGB.
+SIGN_WHITE = Material("sign_white", (0.88, 0.87, 0.82), 220.0, incidence_exponent=6.0)
+SIGN_YELLOW = Material("sign_yellow", (0.93, 0.46, 0.0), 157.0, incidence_exponent=6.0)
+SIGN_RED = Material("sign_red", (0.60, 0.002, 0.002), 45.6, incidence_exponent=6.0)
+SIGN_BLUE = Material("sign_blue", (0.002, 0.040, 0.165), 12.6, incidence_exponent=6.0)
 # Brick and rendered plaster: 0.4-0.6 at 905 nm (ECOSTRESS library: red brick about 0.45,
 # limestone render about 0.6); the lower end.
 FACADE_REFLECTIVITY = 0.45
@@ -119,6 +127,21 @@ HEADLIGHT = Material("headlight", (0.95, 0.95, 0.90), 0.60)
 # meshes, pi x 0.3 / 0.028 = 34; cos^18 gives the fall to a third at 20 deg.
 TAILLIGHT = Material("taillight", (0.60, 0.02, 0.02), 34.0, incidence_exponent=18.0)
 FRAME = paint_material("bike_frame", (0.15, 0.15, 0.17))
+# Bumpers, sills, grilles and mirror housings of black plastic: polypropylene coloured with carbon
+# black, the pigment that absorbs the NIR too (see above): by the rule above, 0.07 (Levinson et
+# al. 2005: carbon black < 0.1 across the NIR). The same for signal heads (black housings and
+# background boards).
+TRIM = paint_material("trim", (0.03, 0.03, 0.03))
+# Wheel rims: cast aluminium alloy, clear-coated or silver-painted (aluminium flakes in a clear
+# binder), or steel rims painted silver. Polished aluminium reflects about 0.86 at 905 nm, but
+# mostly specularly, away from the sensor; a light grey, 0.55 by the rule above.
+RIM = paint_material("rim", (0.60, 0.61, 0.63))
+
+
+def signal_lens(color) -> Material:
+    """A traffic signal's lens (lit or dark by its colour): coloured polycarbonate over a lamp and
+    its reflector, or over an LED board. No measured 905 nm figure found: the headlamps' 0.60."""
+    return Material("signal_lens", tuple(float(c) for c in color), HEADLIGHT.reflectivity)
 
 
 def textile_reflectivity(color) -> float:

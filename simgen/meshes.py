@@ -1,19 +1,22 @@
 """Procedural actor meshes: every part a closed convex hull, every size drawn close to KITTI's.
 
 A mesh is built from a recipe (class, h/w/l, colour, a seed for the proportions), so `meta/`
-can rebuild it exactly. Parts are laid out in unit-ish proportions, then the whole actor is
-scaled per axis so that its extent is exactly the drawn l x w x h and its origin is the
-bottom-face centre: the label box is the mesh's exact extent by construction.
+can rebuild it exactly. Parts are laid out in metres (cars) or unit-ish proportions, then the
+whole actor is scaled per axis so that its extent is exactly the drawn l x w x h and its origin
+is the bottom-face centre: the label box is the mesh's exact extent by construction.
 """
 
 from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
 
 import numpy as np
 import trimesh
 from scipy.spatial import ConvexHull
 
 # The vehicle materials at 905 nm and their sources: simgen.materials.
-from .materials import (FRAME, GLASS, HEADLIGHT, PLATE, TAILLIGHT, TYRE, paint_material,
+from .materials import (FRAME, GLASS, HEADLIGHT, PLATE, RIM, TAILLIGHT, TRIM, TYRE, paint_material,
                         skin_reflectivity, textile_reflectivity)
 from .usermesh import build_user_parts
 from .world import Material, Part, fit_parts
@@ -38,6 +41,48 @@ _PAINT_SHARE = np.array([0.24, 0.20, 0.16, 0.14, 0.09, 0.09, 0.04, 0.04])
 _CLOTHES = np.array([[0.05, 0.05, 0.08], [0.10, 0.15, 0.35], [0.45, 0.05, 0.05], [0.35, 0.35, 0.35],
                      [0.60, 0.55, 0.45], [0.08, 0.25, 0.10], [0.70, 0.70, 0.70]])
 _SKIN = np.array([[0.80, 0.60, 0.48], [0.55, 0.38, 0.27], [0.30, 0.19, 0.13]])
+
+# Car bodies. KITTI's Car class holds cars, SUVs and MPVs: the tall SUV/MPV profile from
+# SUV_HEIGHT up (makers' heights: VW Tiguan 1.69 m, BMW X3 F25 1.68, VW Touran 1.63, Nissan Qashqai
+# 1.61), below it a sedan, hatchback or estate (VW Golf VI 1.48, Passat B7 1.47, BMW 3 series E90
+# 1.42, Opel Astra J 1.51) equally often (no survey of the shares found). Sedans and estates are
+# 4.2 m and longer (Skoda Fabia Combi, about 4.25 m, the shortest estate found) and KITTI's boxes are
+# shorter than makers' lengths (Car mean 3.88 m): below HATCH_ONLY_LENGTH only hatchbacks.
+SUV_HEIGHT, HATCH_ONLY_LENGTH = 1.60, 3.6
+CAR_STYLES = ("sedan", "hatchback", "estate")
+# Proportions per style, drawn uniformly: overhangs, the windscreen's foot (cowl), the roof's and
+# the glass's rear ends (shares of the length from their end); belt line and bonnet front (shares
+# of the height); windscreen rake (degrees from vertical); sill height (m). Read off makers' side
+# views (Golf VI, Passat B7 sedan and estate, Tiguan); no survey.
+_STYLES = {
+    "sedan": {"front": (0.19, 0.22), "rear": (0.21, 0.25), "cowl": (0.29, 0.33),
+              "roof_end": (0.29, 0.34), "glass_end": (0.17, 0.21), "belt": (0.58, 0.63),
+              "nose": (0.46, 0.52), "rake": (58.0, 63.0), "sill": (0.14, 0.18)},
+    "hatchback": {"front": (0.19, 0.23), "rear": (0.15, 0.19), "cowl": (0.28, 0.32),
+                  "roof_end": (0.09, 0.13), "glass_end": (0.03, 0.05), "belt": (0.58, 0.63),
+                  "nose": (0.47, 0.53), "rake": (57.0, 62.0), "sill": (0.14, 0.18)},
+    "estate": {"front": (0.19, 0.22), "rear": (0.19, 0.23), "cowl": (0.29, 0.33),
+               "roof_end": (0.04, 0.07), "glass_end": (0.02, 0.04), "belt": (0.57, 0.62),
+               "nose": (0.46, 0.52), "rake": (58.0, 63.0), "sill": (0.14, 0.18)},
+    "suv": {"front": (0.18, 0.22), "rear": (0.17, 0.21), "cowl": (0.25, 0.30),
+            "roof_end": (0.05, 0.08), "glass_end": (0.02, 0.04), "belt": (0.60, 0.65),
+            "nose": (0.55, 0.60), "rake": (52.0, 57.0), "sill": (0.19, 0.23)},
+}
+# Body width against the mirrors' span, which is the box's width: VW Golf VII 1.799 m against
+# 2.027 m (maker's data).
+BODY_SHARE = 1.799 / 2.027
+# Tyre radii (m): 195/65 R15 and 205/55 R16 0.32 (cars), 215/65 R16 0.34 and 235/55 R18 0.36
+# (SUVs); a 205 mm tread.
+TYRE_RADIUS = {"car": (0.30, 0.33), "suv": (0.33, 0.37)}
+TYRE_WIDTH = 0.205
+# A 16-inch rim (406 mm) in a 205/55 R16 tyre (632 mm across).
+RIM_SHARE = 406.0 / 632.0
+# Rims stand 8 mm proud of the tyre (in unit frames 0.008 of the width): 24-bit depth over the
+# camera's 0.3-400 m resolves about 1.3 mm at 80 m, so the rim never z-fights the tyre.
+RIM_PROUD = 0.008
+# EU number plates: 520 x 110 mm (DIN 74069).
+PLATE_W, PLATE_H = 0.52, 0.11
+ROOF = 0.05  # m: roof panel over the glass
 
 # The emissive look of lamp materials at night (renderer): name -> linear RGB emission.
 EMISSIVE = {"headlight": (4.0, 4.0, 3.6), "taillight": (2.5, 0.05, 0.05)}
@@ -82,11 +127,64 @@ def prism_xz(profile, y0, y1) -> trimesh.Trimesh:
                                 np.c_[p[:, 0], np.full(len(p), y1), p[:, 1]]]))
 
 
-def wheel(x, y, r, width, sections=14) -> trimesh.Trimesh:
-    """A closed cylinder of radius r, axis along y, standing on z = 0 at (x, y)."""
+def _solid(v, faces) -> trimesh.Trimesh:
+    """A closed convex solid from known faces, turned outward: qhull (hull) costs 20x more, and
+    cylinders and hexahedra with planar faces need none."""
+    v, faces = np.asarray(v, dtype=float), np.asarray(faces)
+    a, b, c = v[faces[0]]
+    if np.linalg.det(np.array([b - a, c - a, a - v.mean(axis=0)])) < 0:  # the first face looks inward
+        faces = faces[:, ::-1]
+    return trimesh.Trimesh(v, faces, process=False)
+
+
+def hexahedron(v) -> trimesh.Trimesh:
+    """Eight corners in box() order (bottom x0y0, x1y0, x1y1, x0y1, then the top) of a solid whose
+    faces are planar, e.g. a box sheared or tapered: convex by construction."""
+    return _solid(v, _BOX_FACES)
+
+
+@functools.cache
+def _prism_faces(n: int) -> np.ndarray:
+    """Faces of a prism over an n-gon: vertices 0..n-1 one end, n..2n-1 the other."""
+    i = np.arange(n)
+    j = (i + 1) % n
+    return np.concatenate([np.c_[i, j, n + j], np.c_[i, n + j, n + i],
+                           np.c_[np.zeros(n - 2, int), i[2:], i[1:-1]],
+                           np.c_[np.full(n - 2, n), n + i[1:-1], n + i[2:]]])
+
+
+def extrude(outline, axis: int, lo: float, hi: float) -> trimesh.Trimesh:
+    """A convex outline (corners in order round it, in the other two axes in their order)
+    extruded along `axis` from lo to hi."""
+    outline = np.asarray(outline, dtype=float)
+    n, others = len(outline), [a for a in range(3) if a != axis]
+    v = np.empty((2 * n, 3))
+    v[:, others] = np.tile(outline, (2, 1))
+    v[:n, axis], v[n:, axis] = lo, hi
+    return _solid(v, _prism_faces(n))
+
+
+def _cylinder_y(x, y, z, rx, rz, width, sections) -> trimesh.Trimesh:
+    """A closed elliptic cylinder, axis along y, centred at (x, y, z)."""
     a = 2 * np.pi * np.arange(sections) / sections
-    ring = np.c_[x + r * np.cos(a), np.zeros(sections), r + r * np.sin(a)]
-    return hull(np.concatenate([ring + [0, y - width / 2, 0], ring + [0, y + width / 2, 0]]))
+    xs, zs = x + rx * np.cos(a), z + rz * np.sin(a)
+    v = np.empty((2 * sections, 3))
+    v[:, 0], v[:, 2] = np.tile(xs, 2), np.tile(zs, 2)
+    v[:sections, 1], v[sections:, 1] = y - width / 2, y + width / 2
+    return _solid(v, _prism_faces(sections))
+
+
+def wheel(x, y, r, width, sections=14, rx=None) -> trimesh.Trimesh:
+    """A closed cylinder of radius r, axis along y, standing on z = 0 at (x, y). In a frame that
+    fit_parts scales unevenly, rx = r h / l keeps it round after the scaling."""
+    return _cylinder_y(x, y, r, r if rx is None else rx, r, width, sections)
+
+
+def rim(x, face, r, out, sections=8, rx=None) -> trimesh.Trimesh:
+    """The rim of a tyre of radius r standing at x, on its outer face (at y = face, outward sign
+    `out`): RIM_SHARE of the tyre's radius, standing RIM_PROUD proud of the face so it reads."""
+    rr, rrx = RIM_SHARE * r, RIM_SHARE * (r if rx is None else rx)
+    return _cylinder_y(x, face + out * RIM_PROUD / 2, r, rrx, rr, RIM_PROUD, sections)
 
 
 def sample_size(cls: str, rng: np.random.Generator) -> tuple[float, float, float]:
@@ -111,47 +209,202 @@ def sample_recipe(cls: str, rng: np.random.Generator) -> dict:
             "seed": int(rng.integers(2**31))}
 
 
-def _car(rng, c: Material) -> list[Part]:
-    hood = rng.uniform(0.14, 0.22)  # where the windshield starts (x, share of length from centre)
-    belt = rng.uniform(0.50, 0.56)
-    rear = rng.uniform(-0.40, -0.34)
-    body = prism_xz([[0.5, 0.16], [0.49, 0.42], [hood, belt], [-0.47, belt], [-0.5, 0.42],
-                     [-0.5, 0.18]], -0.5, 0.5)
-    cabin = hull([[hood, -0.44, belt], [hood, 0.44, belt], [rear, -0.44, belt], [rear, 0.44, belt],
-                  [-0.03, -0.37, 0.94], [-0.03, 0.37, 0.94], [rear + 0.10, -0.37, 0.94],
-                  [rear + 0.10, 0.37, 0.94]])
-    roof = box(rear + 0.10, -0.03, -0.37, 0.37, 0.93, 1.0)
-    r = 0.21
-    wheels = [wheel(x, y, r, 0.14) for x in (0.33, -0.31) for y in (-0.40, 0.40)]
-    return [Part(body, c), Part(cabin, GLASS), Part(roof, c),
-            *[Part(wm, TYRE) for wm in wheels],
-            Part(box(0.488, 0.502, -0.12, 0.12, 0.25, 0.33), PLATE),
-            Part(box(-0.502, -0.495, -0.12, 0.12, 0.28, 0.36), PLATE),
-            *[Part(box(0.475, 0.496, s * 0.30, s * 0.44, 0.40, 0.46), HEADLIGHT) for s in (-1, 1)],
-            *[Part(box(-0.501, -0.49, s * 0.32, s * 0.46, 0.40, 0.48), TAILLIGHT)
-              for s in (-1, 1)]]
+def _chamfered(profile, half_w: float, c: float) -> trimesh.Trimesh:
+    """A convex side profile (x, z) swept across |y| <= half_w, its four vertical edges cut by c at
+    45 degrees: a body's plan view is rounded at the corners."""
+    p = np.asarray(profile, dtype=float)
+    x = np.clip(p[:, 0], p[:, 0].min() + c, p[:, 0].max() - c)
+    n = len(p)
+    sections = ((x, half_w), (x, -half_w), (p[:, 0], half_w - c), (p[:, 0], c - half_w))
+    return hull(np.concatenate([np.c_[xs, np.full(n, y), p[:, 1]] for xs, y in sections]))
 
 
-def _van(rng, c: Material) -> list[Part]:
+def _on_side(s: int, belt: tuple, top: tuple, yb: float, yt: float, zb: float, zt: float):
+    """A pillar on the cabin's side s (+1 left): the band [belt] at the belt line and [top] at the
+    roof, on the side's slanted plane, standing 12 mm proud of the glass."""
+    n = np.array([0.0, s * (zt - zb), yb - yt])
+    n /= np.linalg.norm(n)
+    quad = np.array([[belt[0], s * yb, zb], [belt[1], s * yb, zb],
+                     [top[1], s * yt, zt], [top[0], s * yt, zt]])
+    return hexahedron(np.concatenate([quad - 0.005 * n, quad + 0.012 * n]))
+
+
+def _mirror(s: int, x: float, inner: float, outer: float, z: float) -> trimesh.Trimesh:
+    """A door mirror on side s just behind x (the windscreen's foot) at the belt line z, from the
+    body (inner) out to the box's side (outer), its housing larger at the outer end."""
+    root = [(x - 0.16, z + 0.02), (x - 0.06, z + 0.02), (x - 0.06, z + 0.10), (x - 0.16, z + 0.10)]
+    head = [(x - 0.20, z + 0.01), (x - 0.06, z + 0.01), (x - 0.06, z + 0.15), (x - 0.20, z + 0.15)]
+    return hexahedron([[root[i][0], s * inner, root[i][1]] for i in (0, 1)] +
+                      [[head[i][0], s * outer, head[i][1]] for i in (1, 0)] +
+                      [[root[i][0], s * inner, root[i][1]] for i in (3, 2)] +
+                      [[head[i][0], s * outer, head[i][1]] for i in (2, 3)])
+
+
+def _car_style(rng, h: float, l: float) -> str:
+    """SUV/MPV from SUV_HEIGHT up, hatchbacks only below HATCH_ONLY_LENGTH, else any of three."""
+    if h >= SUV_HEIGHT:
+        return "suv"
+    if l < HATCH_ONLY_LENGTH:
+        return "hatchback"
+    return CAR_STYLES[int(rng.integers(len(CAR_STYLES)))]
+
+
+@dataclass(frozen=True)
+class _CarLayout:
+    """A car's stations in metres: x forward from the box centre, y left, z up from the ground.
+    The centimetre offsets in the car's builders only say which face stands proud of which."""
+
+    style: str
+    h: float
+    body: float  # half width of the body; the mirrors reach the box's half width `wing`
+    wing: float
+    r: float  # tyre radius
+    front: float  # body faces, behind the bumpers
+    back: float
+    axles: tuple[float, float]
+    sill: float
+    belt: float
+    nose: float  # bonnet front
+    deck: float  # the body's top behind the glass (sedans: the boot lid, a little lower)
+    cowl: float  # windscreen foot
+    glass_end: float  # the glass's rear foot
+    roof: tuple[float, float]  # roof front and rear ends
+
+
+def _car_layout(rng, dims) -> _CarLayout:
+    """Stations drawn from the style's proportions. Tyres at most 0.24 h (below the belt line of
+    the lowest cars); each axle at least a tyre plus 0.15-0.25 m from the box's ends."""
+    h, w, l = dims
+    style = _car_style(rng, h, l)
+    p = {k: rng.uniform(*v) for k, v in _STYLES[style].items()}
+    r = min(rng.uniform(*TYRE_RADIUS["suv" if style == "suv" else "car"]), 0.24 * h)
+    belt, top = p["belt"] * h, h - ROOF
+    cowl, roof_r = l / 2 - p["cowl"] * l, -l / 2 + p["roof_end"] * l
+    roof_f = min(max(cowl - (top - belt) * np.tan(np.radians(p["rake"])), roof_r + 0.25 * l), cowl - 0.1)
+    return _CarLayout(style, h, BODY_SHARE * w / 2, w / 2, r, l / 2 - 0.03, -l / 2 + 0.02,
+                      (l / 2 - max(p["front"] * l, r + 0.25), -l / 2 + max(p["rear"] * l, r + 0.15)),
+                      p["sill"], belt, p["nose"] * h, belt - 0.04 if style == "sedan" else belt, cowl,
+                      -l / 2 + p["glass_end"] * l, (roof_f, roof_r))
+
+
+def _car(rng, c: Material, dims) -> list[Part]:
+    """A car built in metres (fit_parts then makes its extent exact): a body rounded at the
+    corners, a glass cabin with pillars under a roof, black bumpers, sills and grille, mirrors
+    (the box's width), round tyres with rims, lamps and plates."""
+    k = _car_layout(rng, dims)
+    return _car_body(rng, k, c) + _car_ends(rng, k, dims[2]) + _car_sides(k, c)
+
+
+def _car_body(rng, k: _CarLayout, c: Material) -> list[Part]:
+    """The lower body (chamfered in plan), the glass cabin, its pillars and the roof."""
+    lower = _chamfered([[k.front - 0.04, k.sill], [k.front, k.sill + 0.08], [k.front, k.nose - 0.10],
+                        [k.front - 0.12, k.nose], [k.cowl, k.belt], [k.glass_end, k.belt],
+                        [k.back + 0.06, k.deck], [k.back, k.deck - 0.06], [k.back, k.sill + 0.08],
+                        [k.back + 0.04, k.sill]], k.body, 0.12)
+    (roof_f, roof_r), top = k.roof, k.h - ROOF
+    yb, yt, zb = k.body - 0.03, k.body * rng.uniform(0.76, 0.82), k.belt - 0.02
+    cabin = hexahedron([[k.cowl, -yb, zb], [k.glass_end, -yb, zb], [k.glass_end, yb, zb], [k.cowl, yb, zb],
+                        [roof_f, -yt, top], [roof_r, -yt, top], [roof_r, yt, top], [roof_f, yt, top]])
+    roof = box(roof_r - 0.01, roof_f + 0.01, -yt - 0.01, yt + 0.01, top - 0.01, k.h)
+    pillars = [_on_side(s, *band, yb, yt, zb, top) for s in (-1, 1)
+               for band in _pillars(rng, k.style, k.cowl, k.glass_end, roof_f, roof_r)]
+    return [Part(lower, c), Part(cabin, GLASS), Part(roof, c), *[Part(m, c) for m in pillars]]
+
+
+def _car_ends(rng, k: _CarLayout, l: float) -> list[Part]:
+    """Black bumpers wrapping 0.27 m round the sides, the plates (the front one on the bumper,
+    the rear one above it), the grille, head and tail lamps."""
+    z0 = k.sill + 0.03
+    tops = [min(z0 + rng.uniform(0.20, 0.28), k.nose - 0.17) for _ in range(2)]
+    parts = []
+    hw, c = k.body + 0.005, 0.13
+    for x_end, sgn, z1 in ((l / 2, 1.0, tops[0]), (-l / 2, -1.0, tops[1])):
+        x = x_end - sgn * np.array([0.0, 0.0, c, 0.40 - c, 0.40, 0.40, 0.40 - c, c])
+        bumper = extrude(np.c_[x, [c - hw, hw - c, hw, hw, hw - c, c - hw, -hw, -hw]], 2, z0, z1)
+        pz = (z0 + z1) / 2 if sgn > 0 else z1 + 0.03 + PLATE_H / 2
+        px = x_end - 0.001 if sgn > 0 else k.back
+        parts += [Part(bumper, TRIM), Part(box(px - 0.005, px + 0.005, -PLATE_W / 2, PLATE_W / 2,
+                                                pz - PLATE_H / 2, pz + PLATE_H / 2), PLATE)]
+    parts.append(Part(box(k.front - 0.02, k.front + 0.006, 0.44 - k.body, k.body - 0.44, tops[0] - 0.01,
+                          k.nose - 0.12), TRIM))
+    for s in (-1, 1):
+        y = sorted((s * (k.body - 0.42), s * (k.body - 0.14)))
+        parts += [Part(box(k.front - 0.02, k.front + 0.01, *y, k.nose - 0.15, k.nose - 0.05), HEADLIGHT),
+                  Part(box(k.back - 0.012, k.back + 0.02, *y, k.deck - 0.20, k.deck - 0.07), TAILLIGHT)]
+    return parts
+
+
+def _car_sides(k: _CarLayout, c: Material) -> list[Part]:
+    """Sills between the wheels, mirrors, tyres whose outer faces stand just proud of the body
+    side, rims on them."""
+    (ax_f, ax_r), r = k.axles, k.r
+    parts = []
+    for s in (-1, 1):
+        face = s * (k.body + 0.006)
+        parts += [Part(box(ax_r + r + 0.04, ax_f - r - 0.04, s * (k.body - 0.05), s * (k.body + 0.004),
+                           k.sill, k.sill + 0.09), TRIM),
+                  Part(_mirror(s, k.cowl, k.body - 0.04, k.wing, k.belt), c)]
+        for ax in (ax_f, ax_r):
+            parts += [Part(wheel(ax, face - s * TYRE_WIDTH / 2, r, TYRE_WIDTH, 12), TYRE),
+                      Part(rim(ax, face, r, s), RIM)]
+    return parts
+
+
+def _pillars(rng, style: str, cowl: float, glass_r: float, roof_f: float, roof_r: float):
+    """(belt band, roof band) of the B pillar and the rear pillars: a broad C pillar on sedans and
+    hatchbacks, a C and a slim D pillar on estates and SUVs."""
+    span = cowl - glass_r
+    xb = cowl - rng.uniform(0.40, 0.46) * span
+    tb = float(np.clip(xb + 0.05, roof_r + 0.1, roof_f - 0.1))
+    bands = [((xb - 0.10, xb), (tb - 0.08, tb))]
+    if style in ("sedan", "hatchback"):
+        wb, wt = (rng.uniform(0.35, 0.50), rng.uniform(0.10, 0.18)) if style == "sedan" else (
+            rng.uniform(0.45, 0.65), rng.uniform(0.20, 0.30))
+        return bands + [((glass_r, glass_r + wb), (roof_r, roof_r + wt))]
+    xc = cowl - rng.uniform(0.68, 0.74) * span
+    tc = float(np.clip(xc, roof_r + 0.3, roof_f - 0.3))
+    return bands + [((xc - 0.10, xc), (tc - 0.10, tc)), ((glass_r, glass_r + 0.16), (roof_r, roof_r + 0.12))]
+
+
+def _wheels(xs, half: float, r: float, width: float, rx: float) -> list[Part]:
+    """Tyres at x in xs whose outer faces stand just proud of the sides at +-half, rims on them
+    (unit frames: rx = r h / l keeps them round)."""
+    parts = []
+    for s in (-1, 1):
+        face = s * (half + 0.006)
+        for x in xs:
+            parts += [Part(wheel(x, face - s * width / 2, r, width, 12, rx), TYRE),
+                      Part(rim(x, face, r, s, rx=rx), RIM)]
+    return parts
+
+
+def _van(rng, c: Material, dims) -> list[Part]:
+    """A van in a unit frame: mirrors span the box's width, as on the car."""
+    h, _, l = dims
+    b = BODY_SHARE / 2
     nose = rng.uniform(0.28, 0.36)
-    body = prism_xz([[0.5, 0.14], [0.5, 0.45], [nose, 0.52], [-0.5, 0.52], [-0.5, 0.14]], -0.5, 0.5)
-    upper = box(-0.5, nose - 0.10, -0.5, 0.5, 0.50, 1.0)
-    shield = hull([[nose, -0.46, 0.52], [nose, 0.46, 0.52], [nose - 0.10, -0.46, 0.50],
-                   [nose - 0.10, 0.46, 0.50], [nose - 0.10, -0.44, 0.86], [nose - 0.10, 0.44, 0.86]])
-    side_windows = [box(-0.15, nose - 0.11, s * 0.5 - 0.005, s * 0.5 + 0.005, 0.60, 0.82)
-                    for s in (-1, 1)]
+    body = prism_xz([[0.5, 0.14], [0.5, 0.45], [nose, 0.52], [-0.5, 0.52], [-0.5, 0.14]], -b, b)
+    upper = box(-0.5, nose - 0.10, -b, b, 0.50, 1.0)
+    shield = hull([[nose, 0.04 - b, 0.52], [nose, b - 0.04, 0.52], [nose - 0.10, 0.04 - b, 0.50],
+                   [nose - 0.10, b - 0.04, 0.50], [nose - 0.10, 0.06 - b, 0.86],
+                   [nose - 0.10, b - 0.06, 0.86]])
+    side_windows = [box(-0.15, nose - 0.11, s * b - 0.005, s * b + 0.005, 0.60, 0.82) for s in (-1, 1)]
     r = 0.16
-    wheels = [wheel(x, y, r, 0.12) for x in (0.32, -0.32) for y in (-0.42, 0.42)]
     return [Part(body, c), Part(upper, c), Part(shield, GLASS),
-            *[Part(m, GLASS) for m in side_windows], *[Part(m, TYRE) for m in wheels],
-            Part(box(0.495, 0.502, -0.11, 0.11, 0.22, 0.29), PLATE),
-            Part(box(-0.502, -0.495, -0.11, 0.11, 0.25, 0.32), PLATE),
-            *[Part(box(0.49, 0.503, s * 0.30, s * 0.45, 0.38, 0.44), HEADLIGHT) for s in (-1, 1)],
-            *[Part(box(-0.503, -0.49, s * 0.36, s * 0.48, 0.30, 0.45), TAILLIGHT)
+            *[Part(m, GLASS) for m in side_windows], *_wheels((0.32, -0.32), b, r, 0.11, r * h / l),
+            *[Part(box(sgn * 0.47, sgn * 0.503, -b - 0.004, b + 0.004, 0.10, 0.25), TRIM)
+              for sgn in (-1, 1)],  # bumpers
+            *[Part(box(nose - 0.16, nose - 0.11, s * (b - 0.02), s * 0.5, 0.55, 0.68), TRIM)
+              for s in (-1, 1)],  # mirrors
+            Part(box(0.503, 0.509, -0.11, 0.11, 0.14, 0.21), PLATE),
+            Part(box(-0.509, -0.503, -0.11, 0.11, 0.14, 0.21), PLATE),
+            *[Part(box(0.49, 0.503, s * 0.30, s * 0.42, 0.38, 0.44), HEADLIGHT) for s in (-1, 1)],
+            *[Part(box(-0.503, -0.49, s * 0.32, s * 0.42, 0.30, 0.45), TAILLIGHT)
               for s in (-1, 1)]]
 
 
-def _truck(rng, c: Material) -> list[Part]:
+def _truck(rng, c: Material, dims) -> list[Part]:
+    h, _, l = dims
     cab_len = rng.uniform(0.17, 0.24)
     front = 0.5
     cab = box(front - cab_len, front, -0.5, 0.5, 0.12, 0.92)
@@ -159,25 +412,24 @@ def _truck(rng, c: Material) -> list[Part]:
     cargo_color = paint(rng.uniform(0.5, 0.95, 3))
     cargo = box(-0.5, front - cab_len - 0.02, -0.5, 0.5, 0.14, 1.0)
     chassis = box(-0.48, front - 0.02, -0.35, 0.35, 0.08, 0.16)
-    r = 0.11
+    r = 0.15  # 315/80 R22.5 tyres: 0.54 m, 0.16 of a 3.25 m truck
     xs = (front - cab_len * 0.5, -0.28, -0.38)
-    wheels = [wheel(x, y, r, 0.10) for x in xs for y in (-0.40, 0.40)]
     return [Part(cab, c), Part(shield, GLASS), Part(cargo, cargo_color), Part(chassis, FRAME),
-            *[Part(m, TYRE) for m in wheels],
+            *_wheels(xs, 0.5, r, 0.10, r * h / l),
             Part(box(0.5, 0.503, -0.08, 0.08, 0.15, 0.20), PLATE),
             *[Part(box(0.5, 0.503, s * 0.30, s * 0.45, 0.22, 0.28), HEADLIGHT) for s in (-1, 1)],
             *[Part(box(-0.503, -0.5, s * 0.30, s * 0.45, 0.16, 0.22), TAILLIGHT)
               for s in (-1, 1)]]
 
 
-def _bus(rng, c: Material) -> list[Part]:
+def _bus(rng, c: Material, dims) -> list[Part]:
+    h, _, l = dims
     body = box(-0.5, 0.5, -0.5, 0.5, 0.10, 1.0)
     band = [box(-0.45, 0.42, s * 0.5 - 0.004, s * 0.5 + 0.004, 0.45, 0.85) for s in (-1, 1)]
     shield = box(0.5, 0.504, -0.45, 0.45, 0.35, 0.90)
     r = 0.16
-    wheels = [wheel(x, y, r, 0.11) for x in (0.32, -0.25) for y in (-0.40, 0.40)]
     return [Part(body, c), *[Part(m, GLASS) for m in band], Part(shield, GLASS),
-            *[Part(m, TYRE) for m in wheels],
+            *_wheels((0.32, -0.25), 0.5, r, 0.11, r * h / l),
             *[Part(box(0.5, 0.505, s * 0.30, s * 0.45, 0.15, 0.22), HEADLIGHT) for s in (-1, 1)],
             *[Part(box(-0.505, -0.5, s * 0.30, s * 0.45, 0.15, 0.25), TAILLIGHT)
               for s in (-1, 1)]]
@@ -251,8 +503,9 @@ def _cyclist(rng, c: Material) -> list[Part]:
     return parts
 
 
-_BUILDERS = {"car": _car, "van": _van, "truck": _truck, "bus": _bus,
-             "pedestrian": _pedestrian, "cyclist": _cyclist}
+# Vehicles are built knowing their size (round wheels, parts in metres); people in a unit frame.
+_VEHICLES = {"car": _car, "van": _van, "truck": _truck, "bus": _bus}
+_PEOPLE = {"pedestrian": _pedestrian, "cyclist": _cyclist}
 
 
 def build_actor_parts(recipe: dict) -> list[Part]:
@@ -261,8 +514,9 @@ def build_actor_parts(recipe: dict) -> list[Part]:
     h, w, l = recipe["dims"]
     if kind == "user":
         return build_user_parts(recipe)
-    if kind not in _BUILDERS:
+    if kind not in _VEHICLES and kind not in _PEOPLE:
         raise ValueError(f"unknown mesh kind {kind!r}")
     rng = np.random.default_rng(recipe["seed"])
-    parts = _BUILDERS[kind](rng, paint(recipe["color"]))
+    c = paint(recipe["color"])
+    parts = _VEHICLES[kind](rng, c, (h, w, l)) if kind in _VEHICLES else _PEOPLE[kind](rng, c)
     return fit_parts(parts, h, w, l)

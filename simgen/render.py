@@ -4,7 +4,14 @@ One OffscreenRenderer per worker process, reused across frames (EGL; Mesa's llvm
 machine without a GPU). Two passes per frame: a lit colour pass (4x MSAA) and a flat
 segmentation pass without multisampling, sampled at pixel centres, whose 8-bit colours carry the
 actor id exactly (id = R + 256 G) and whose depth buffer gives the depth image. Each actor is one draw call (its parts merged, colours per face);
-the static world is one more.
+the static world is one draw call per texture.
+
+The lit looks (day, dusk) are shaded per face on the CPU and drawn unlit (see _Shader); on top
+of that the surfaces wear procedural textures (simgen.textures) mapped from world coordinates,
+the sky is a dome with a gradient and clouds, car paint and glass mirror the sky with Fresnel's
+reflectance, and the sun casts shadows (simgen.shadows) from the same meshes the LiDAR sees.
+The colour pass keeps HEADROOM over the unit of radiance so that the camera (simgen.camera),
+not the 8-bit framebuffer, decides what saturates.
 
 Exact camera: the real KITTI rectified camera 2 is not a rigid transform of the world (R0_rect
 times Tr_velo_to_cam is orthonormal only to ~1e-4). The camera node gets the nearest rigid pose
@@ -25,31 +32,53 @@ import numpy as np  # noqa: E402
 import pyrender  # noqa: E402
 from pyrender.constants import RenderFlags  # noqa: E402
 
+from . import textures  # noqa: E402
+from .factors import factor_rng  # noqa: E402
 from .meshes import EMISSIVE  # noqa: E402
+from .shadows import sun_shadow  # noqa: E402
 from .world import Part, World  # noqa: E402
 
 ZNEAR, ZFAR = 0.3, 400.0
 _F = np.diag([1.0, -1.0, -1.0, 1.0])  # OpenGL camera axes <-> computer-vision camera axes
 
 SKY = {"day": (0.62, 0.74, 0.90), "dusk": (0.55, 0.42, 0.38), "night": (0.015, 0.015, 0.025)}
-AMBIENT = {"day": 0.45, "dusk": 0.18, "night": 0.02}
+# Skylight against the sun: on a clear day the diffuse share of the global horizontal irradiance is
+# 0.1-0.2 with the sun above 30 deg (Erbs et al. 1982 correlation at clearness index > 0.8: 0.165);
+# 0.2 / (0.2 + 1.17 sin 45 deg) = 0.19.
+AMBIENT = {"day": 0.2, "dusk": 0.18, "night": 0.02}
 SUN = {"day": (1.0, 0.97, 0.92), "dusk": (1.0, 0.62, 0.38), "night": (0.4, 0.45, 0.6)}
 SUN_POWER = {"day": 4.0, "dusk": 2.0, "night": 0.08}
+# Linear radiance the lit colour pass can hold, in units of a white surface under the sky alone
+# plus the sun's diffuse term at normal incidence (which reaches 1.6 at noon): room for sunlit
+# white and bright cloud before the camera's exposure decides what clips.
+HEADROOM = 2.0
+# Sky radiance on the same scale: clear sky is a quarter to a half of the luminance of sunlit
+# white paper (zenith about 4,000-8,000 cd/m2, sunlit white about 30,000), brightest near the
+# horizon (haze); sunlit cumulus is about as bright as sunlit white.
+SKY_ZENITH, SKY_HORIZON, CLOUD = (0.30, 0.42, 0.75), (0.62, 0.68, 0.78), (1.45, 1.45, 1.45)
+# Clear coat and glass: Fresnel reflectance at normal incidence for n = 1.5 (((n-1)/(n+1))^2),
+# Schlick's approximation at other angles; the sun's highlight on them, Blinn-Phong.
+GLOSSY = {"paint", "glass", "headlight", "taillight"}
+F0 = 0.04
+HIGHLIGHT_EXPONENT = 300.0
+GROUND_RADIANCE = 0.08  # what a glossy face mirrors below the horizon (dark ground)
 
 # Thermal emulation ("white hot", 0..1): a temperature per material; moving vehicles run warm.
 TEMPERATURE = {"asphalt": 0.42, "marking": 0.40, "curb": 0.38, "sidewalk": 0.38, "verge": 0.30,
                "sand": 0.55, "forest_floor": 0.27, "facade": 0.33, "bark": 0.30, "foliage": 0.24,
-               "pole": 0.28, "fence": 0.30,
-               "paint": 0.45, "glass": 0.28, "tyre": 0.55, "plate": 0.42, "headlight": 0.80,
-               "taillight": 0.70, "bike_frame": 0.40, "skin": 0.97, "clothes": 0.78, "user": 0.50}
+               "pole": 0.28, "fence": 0.30, "sign_white": 0.30, "sign_yellow": 0.30, "sign_red": 0.30,
+               "sign_blue": 0.30, "signal_lens": 0.60, "bin": 0.32,
+               "paint": 0.45, "trim": 0.45, "rim": 0.50, "glass": 0.28, "tyre": 0.55, "plate": 0.42,
+               "headlight": 0.80, "taillight": 0.70, "bike_frame": 0.40, "skin": 0.97, "clothes": 0.78, "user": 0.50}
 _WARM_WHEN_MOVING = {"tyre": 0.30, "paint": 0.10}
 
 
 @dataclass
 class RenderOutput:
-    color: np.ndarray  # (H, W, 3) uint8 RGB, before the weather/sensor look (simgen.look)
+    color: np.ndarray  # (H, W, 3) uint8 RGB, gamma-encoded radiance / headroom, before simgen.look
     depth: np.ndarray  # (H, W) float32 camera-2 z in metres, 0 where no surface
     instance: np.ndarray  # (H, W) uint16 actor id, 0 = background
+    headroom: float = 1.0  # linear radiance of a colour value of 255
 
 
 class _ExactCamera(pyrender.IntrinsicsCamera):
@@ -90,32 +119,48 @@ _PLAIN = pyrender.MetallicRoughnessMaterial(baseColorFactor=(1.0, 1.0, 1.0, 1.0)
                                             roughnessFactor=0.9, doubleSided=True)
 # pyrender's diffuse term for a white base: (1 - F) c_diff / pi with F ~ 0.04, c_diff = 0.96.
 _DIFFUSE = 0.96 * 0.96 / np.pi
+_TEXTURED: dict[tuple[int, str, int], pyrender.MetallicRoughnessMaterial] = {}
 
 
-def _flat_mesh(parts: list[Part], shader: "_Shader | None", rotation: np.ndarray, moving: bool,
-               material=_PLAIN) -> pyrender.Mesh:
-    """One flat-shaded primitive for many parts, a colour per face (vertices unshared per face);
-    white faces without a shader (emissive lamps)."""
-    tris, normals = _triangles(parts)
-    face_colors = shader.colors(parts, normals @ rotation.T, moving) if shader else np.ones((len(tris), 3))
-    prim = pyrender.Primitive(positions=tris.reshape(-1, 3).astype(np.float32),
-                              normals=np.repeat(normals, 3, axis=0).astype(np.float32),
-                              color_0=np.c_[np.repeat(face_colors, 3, axis=0), np.ones(3 * len(tris))
-                                            ].astype(np.float32), material=material)
-    return pyrender.Mesh([prim])
+def _textured(kind: str, variant: int) -> pyrender.MetallicRoughnessMaterial:
+    """The process's material for one texture tile, made once: pyrender keeps a texture in the
+    GL context for as long as consecutive scenes use the same object."""
+    key = (os.getpid(), kind, variant)
+    if key not in _TEXTURED:
+        tex = pyrender.Texture(source=textures.tile(kind, variant), source_channels="RGB")
+        _TEXTURED[key] = pyrender.MetallicRoughnessMaterial(baseColorTexture=tex, metallicFactor=0.0,
+                                                            roughnessFactor=0.9, doubleSided=True)
+    return _TEXTURED[key]
 
 
 def _triangles(parts: list[Part]) -> tuple[np.ndarray, np.ndarray]:
     """(F, 3, 3) triangles and (F, 3) unit normals of all parts (numpy, no trimesh caches)."""
-    tris = np.concatenate([np.asarray(p.mesh.vertices)[np.asarray(p.mesh.faces)] for p in parts])
+    tris = np.concatenate([np.asarray(p.mesh.vertices).view(np.ndarray)[np.asarray(p.mesh.faces).view(np.ndarray)]
+                           for p in parts])
     n = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
     n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
     return tris, n
 
 
+def _primitive(tris: np.ndarray, normals: np.ndarray, rgba: np.ndarray, material,
+               uv: np.ndarray | None = None) -> pyrender.Primitive:
+    """Flat faces: vertices unshared per face, a colour per face."""
+    return pyrender.Primitive(
+        positions=tris.reshape(-1, 3).astype(np.float32),
+        normals=np.repeat(normals, 3, axis=0).astype(np.float32),
+        color_0=np.repeat(rgba, 3, axis=0).astype(np.float32),
+        texcoord_0=None if uv is None else uv.reshape(-1, 2).astype(np.float32), material=material)
+
+
 def _to_sun(light) -> np.ndarray:
     el, az = np.radians(light.sun_elevation_deg), np.radians(light.sun_azimuth_deg)
     return np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
+
+
+def _sky_radiance(up: np.ndarray) -> np.ndarray:
+    """(N, 3) clear-sky radiance for directions of height `up` (sine of the elevation)."""
+    t = np.clip(up, 0.0, 1.0)[:, None] ** 0.5
+    return np.asarray(SKY_HORIZON) * (1 - t) + np.asarray(SKY_ZENITH) * t
 
 
 class _Shader:
@@ -124,29 +169,60 @@ class _Shader:
     'lit' (day, dusk): Lambertian sun plus a sky term brighter on upward faces, evaluated per
     face on the CPU and gamma-encoded, then drawn with pyrender's unlit shader: 5-7x faster
     on llvmpipe than its per-pixel PBR shader, and the same picture for flat-shaded diffuse
-    surfaces. 'pbr' (night): albedo only; pyrender lights per pixel, as the headlamp cones
-    need. 'thermal': a temperature per material, unlit.
+    surfaces. Glossy faces (paint, glass, lamps) add the sky or ground they mirror (Fresnel,
+    Schlick) and the sun's highlight. The alpha channel carries each face's share of light that
+    is not direct sun (gamma-encoded): what is left where a shadow falls (simgen.shadows).
+    'pbr' (night): albedo only; pyrender lights per pixel, as the headlamp cones need.
+    'thermal': a temperature per material, unlit.
     """
 
-    def __init__(self, world: World):
+    def __init__(self, world: World, eye: np.ndarray):
         light = world.light
         self.mode = ("thermal" if world.sensor == "thermal"
                      else "pbr" if light.time == "night" else "lit")
         self.sun = _to_sun(light)
         self.sun_rgb = np.asarray(SUN[light.time]) * SUN_POWER[light.time] * light.sun_intensity
         self.ambient = AMBIENT[light.time]
+        self.eye = eye
+        self.headroom = HEADROOM if self.mode == "lit" else 1.0
 
-    def colors(self, parts: list[Part], normals: np.ndarray, moving: bool) -> np.ndarray:
-        """(F, 3) colours of all faces of the parts (world-frame normals), in _triangles order."""
+    def colors(self, parts: list[Part], tris: np.ndarray, normals: np.ndarray, moving: bool,
+               albedo_gain: np.ndarray | None = None) -> np.ndarray:
+        """(F, 4) RGBA of all faces of the parts (world-frame triangles and normals), in
+        _triangles order."""
         counts = [len(p.mesh.faces) for p in parts]
         if self.mode == "thermal":
-            return np.repeat(np.array([_thermal(p, moving) for p in parts]), counts, axis=0)
+            rgb = np.repeat(np.array([_thermal(p, moving) for p in parts]), counts, axis=0)
+            return np.c_[rgb, np.ones(len(rgb))]
         albedo = np.repeat(np.array([p.material.color for p in parts], float), counts, axis=0)
+        if albedo_gain is not None:
+            albedo = albedo * np.repeat(albedo_gain, counts, axis=0)
         if self.mode == "pbr":
-            return albedo
+            return np.c_[albedo, np.ones(len(albedo))]
         sun = np.clip(normals @ self.sun, 0.0, 1.0)[:, None] * self.sun_rgb * _DIFFUSE
         sky = self.ambient * (0.7 + 0.3 * normals[:, 2:3])
-        return np.clip((albedo * (sun + sky)) ** (1 / 2.2), 0.0, 1.0)
+        lin = albedo * (sun + sky)
+        glossy = np.repeat([p.material.name in GLOSSY for p in parts], counts)
+        if glossy.any():
+            lin[glossy] += self._mirror(tris[glossy].mean(axis=1), normals[glossy])
+        rest = (sky / np.maximum(sun + sky, 1e-9)).mean(axis=1)
+        rgb = np.clip(lin / self.headroom, 0.0, 1.0) ** (1 / 2.2)
+        return np.c_[rgb, np.clip(rest, 0.0, 1.0) ** (1 / 2.2)]
+
+    def _mirror(self, centres: np.ndarray, normals: np.ndarray) -> np.ndarray:
+        """Radiance a clear coat or pane reflects towards the eye: sky or ground, and the sun."""
+        view = self.eye - centres
+        view /= np.maximum(np.linalg.norm(view, axis=1, keepdims=True), 1e-9)
+        cos = np.einsum("ij,ij->i", normals, view)
+        n = np.where(cos[:, None] < 0, -normals, normals)  # double-sided
+        cos = np.abs(cos)
+        fresnel = F0 + (1 - F0) * (1 - cos) ** 5
+        r = 2 * cos[:, None] * n - view
+        env = np.where(r[:, 2:3] > 0, _sky_radiance(r[:, 2]), GROUND_RADIANCE)
+        half = view + self.sun
+        half /= np.maximum(np.linalg.norm(half, axis=1, keepdims=True), 1e-9)
+        glint = np.clip(np.einsum("ij,ij->i", n, half), 0.0, 1.0) ** HIGHLIGHT_EXPONENT
+        return fresnel[:, None] * (env + glint[:, None] * self.sun_rgb)
 
 
 def _thermal(part: Part, moving: bool) -> tuple[float, float, float]:
@@ -156,32 +232,172 @@ def _thermal(part: Part, moving: bool) -> tuple[float, float, float]:
     return (t, t, t)
 
 
+def _actor_meshes(bodies: list[tuple[list[Part], np.ndarray, bool]], shader: _Shader) -> list[pyrender.Mesh]:
+    """One flat-shaded primitive per actor (parts in the actor frame), all actors shaded in one
+    vectorised pass in the world frame."""
+    if not bodies:
+        return []
+    geo = [_triangles(parts) for parts, _, _ in bodies]
+    world_tris = np.concatenate([t @ pose[:3, :3].T + pose[:3, 3] for (t, _), (_, pose, _) in zip(geo, bodies)])
+    world_n = np.concatenate([n @ pose[:3, :3].T for (_, n), (_, pose, _) in zip(geo, bodies)])
+    parts = [p for b, _, _ in bodies for p in b]
+    if shader.mode == "thermal":  # warm when moving: per actor
+        rgba = np.concatenate([shader.colors(b, None, None, moving) for b, _, moving in bodies])
+    else:
+        rgba = shader.colors(parts, world_tris, world_n, False)
+    ends = np.cumsum([len(t) for t, _ in geo])[:-1]
+    return [pyrender.Mesh([_primitive(t, n, c, _PLAIN)])
+            for (t, n), c in zip(geo, np.split(rgba, ends))]
+
+
+def _lamp_mesh(part: Part, material) -> pyrender.Mesh:
+    """An emissive lamp at night: white faces under an emissive material (actor frame)."""
+    tris, normals = _triangles([part])
+    return pyrender.Mesh([_primitive(tris, normals, np.ones((len(tris), 4)), material)])
+
+
+def _facade_uv(tris: np.ndarray, normals: np.ndarray, tile: tuple[float, float],
+               shift: float) -> np.ndarray:
+    """Texture coordinates of vertical wall rectangles (two triangles sharing a diagonal): a
+    whole number of window bays across each wall, storeys counted from the wall's foot."""
+    t = np.c_[-normals[:, 1], normals[:, 0]]
+    t /= np.maximum(np.linalg.norm(t, axis=1, keepdims=True), 1e-9)
+    s = np.einsum("fkj,fj->fk", tris[..., :2], t)
+    s0, width = s.min(axis=1, keepdims=True), np.ptp(s, axis=1)[:, None]
+    bays = np.maximum(1.0, np.round(width / textures.BAY_M))
+    u = (s - s0) / np.maximum(width, 1e-9) * bays * textures.BAY_M / tile[0] + shift
+    v = (tris[..., 2] - tris[..., 2].min(axis=1, keepdims=True)) / tile[1]
+    return np.stack([u, v], axis=2)
+
+
+def _planar_uv(tris: np.ndarray, normals: np.ndarray, tile: tuple[float, float],
+               shift: np.ndarray) -> np.ndarray:
+    """Texture coordinates from world coordinates: (x, y) on faces that face up or down, (along
+    the face, z) on the others."""
+    up = np.abs(normals[:, 2]) >= 0.7
+    t = np.c_[-normals[:, 1], normals[:, 0]]
+    t /= np.maximum(np.linalg.norm(t, axis=1, keepdims=True), 1e-9)
+    along = np.einsum("fkj,fj->fk", tris[..., :2], t)
+    u = np.where(up[:, None], tris[..., 0], along)
+    v = np.where(up[:, None], tris[..., 1], tris[..., 2])
+    return np.stack([u / tile[0], v / tile[1]], axis=2) + shift
+
+
+def _static_mesh(parts: list[Part], shader: _Shader, world: World) -> pyrender.Mesh:
+    """The static world, one primitive per texture tile (and one for untextured faces)."""
+    rng = factor_rng(world.seed, world.frame_index, "appearance")
+    look = world.appearance
+    gain = np.exp(rng.normal(0.0, look.colour_jitter, (len(parts), 3)))
+    tris, normals = _triangles(parts)
+    rgba = shader.colors(parts, tris, normals, False, gain)
+    if shader.mode != "lit" or not look.textures:
+        return pyrender.Mesh([_primitive(tris, normals, rgba, _PLAIN)])
+    owner = np.repeat(np.arange(len(parts)), [len(p.mesh.faces) for p in parts])
+    prims, plain = [], np.ones(len(tris), bool)
+    for i, part in enumerate(parts):
+        name = part.material.name
+        if name == "facade":
+            vertical = (owner == i) & (np.abs(normals[:, 2]) < 0.7)
+            wall = "brick" if rng.uniform() < 0.4 else "plaster"
+            groups = [(vertical, wall), ((owner == i) & ~vertical, "roof")]
+        elif name in textures.OF_MATERIAL:
+            groups = [(owner == i, textures.OF_MATERIAL[name])]
+        else:
+            continue
+        for sel, kind in groups:
+            if not sel.any():
+                continue
+            variant = int(rng.integers(textures.VARIANTS))
+            tile = tuple(np.asarray(textures.TILE_M[kind]) * rng.uniform(0.85, 1.15))
+            if kind in ("brick", "plaster"):
+                uv = _facade_uv(tris[sel], normals[sel], tile, 0.5 * rng.integers(2))
+            else:
+                uv = _planar_uv(tris[sel], normals[sel], tile, rng.uniform(0, 1, 2))
+            colour = rgba[sel] * np.array([textures.MAX_GAIN] * 3 + [1.0])
+            prims.append(_primitive(tris[sel], normals[sel], colour, _textured(kind, variant), uv))
+            plain &= ~sel
+    if plain.any():
+        prims.append(_primitive(tris[plain], normals[plain], rgba[plain], _PLAIN))
+    return pyrender.Mesh(prims)
+
+
+_DOME_RADIUS = 350.0  # m, inside ZFAR
+_DOME_LOW = np.radians(-20.0)  # the dome reaches below the horizon: the ground hides that part
+
+
+def _sky_texture(rng: np.random.Generator, cover: float, headroom: float) -> np.ndarray:
+    """(64, 256, 3) uint8 equirectangular sky from the horizon (bottom rows) to the zenith:
+    the clear-sky gradient, and clouds where fractal noise exceeds the quantile that leaves
+    `cover` of the sky clouded, greyer at their thick cores."""
+    h, w = 64, 256
+    elev = np.linspace(np.pi / 2, _DOME_LOW, h)
+    sky = _sky_radiance(np.sin(elev))[:, None, :].repeat(w, axis=1)
+    if cover > 0:
+        n = textures._fractal(rng, 1.8, size=(h, w))  # periodic in azimuth
+        thr = np.quantile(n, 1.0 - cover)
+        density = np.clip((n - thr) / 0.6, 0.0, 1.0)[..., None]
+        core = np.clip((n - thr - 0.8) / 1.5, 0.0, 0.45)[..., None]
+        sky = sky * (1 - density) + np.asarray(CLOUD) * density * (1 - core)
+    return np.clip(np.round((sky / headroom) ** (1 / 2.2) * 255), 0, 255).astype(np.uint8)
+
+
+def _sky_dome(world: World, headroom: float) -> pyrender.Mesh:
+    """A textured dome around the camera for the lit looks (not in the segmentation pass: its
+    pixels keep depth 0 and instance 0)."""
+    rng = factor_rng(world.seed, world.frame_index, "sky")
+    az = np.linspace(0, 2 * np.pi, 49)
+    el = np.linspace(_DOME_LOW, np.pi / 2, 13)
+    A, E = np.meshgrid(az, el)
+    P = _DOME_RADIUS * np.stack([np.cos(E) * np.cos(A), np.cos(E) * np.sin(A), np.sin(E)], axis=-1)
+    UV = np.stack([A / (2 * np.pi), (E - _DOME_LOW) / (np.pi / 2 - _DOME_LOW)], axis=-1)
+    i, j = np.meshgrid(np.arange(12), np.arange(48), indexing="ij")
+    quads = np.stack([i * 49 + j, i * 49 + j + 1, (i + 1) * 49 + j + 1, (i + 1) * 49 + j], -1).reshape(-1, 4)
+    faces = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
+    tris, uv = P.reshape(-1, 3)[faces], UV.reshape(-1, 2)[faces]
+    normals = -tris.mean(axis=1) / _DOME_RADIUS
+    tex = pyrender.Texture(source=_sky_texture(rng, world.appearance.cloud_cover, headroom),
+                           source_channels="RGB")
+    mat = pyrender.MetallicRoughnessMaterial(baseColorTexture=tex, metallicFactor=0.0, doubleSided=True)
+    return pyrender.Mesh([_primitive(tris, normals, np.ones((len(tris), 4)), mat, uv)])
+
+
+def _seg_code(actor_id: int) -> tuple[int, int, int]:
+    """The segmentation colour that carries an actor id exactly (id = R + 256 G)."""
+    return (actor_id % 256, actor_id // 256, 0)
+
+
 def build_scene(world: World) -> tuple[pyrender.Scene, dict, int]:
     """The pyrender scene of a world at t = 0, its segmentation map (node -> colour) and the
     render flags of its colour pass."""
     light = world.light
-    shader = _Shader(world)
+    rig = world.rig
+    cam2_from_world = rig.cam2_from_world()
+    eye = np.linalg.inv(cam2_from_world)[:3, 3]
+    shader = _Shader(world, eye)
     scene = pyrender.Scene(bg_color=(*((0.02,) * 3 if shader.mode == "thermal" else SKY[light.time]), 1.0),
                            ambient_light=(AMBIENT[light.time],) * 3)
     seg: dict = {}
     if world.static:
-        seg[scene.add(_flat_mesh(world.static, shader, np.eye(3), False))] = (0, 0, 0)
+        seg[scene.add(_static_mesh(world.static, shader, world))] = (0, 0, 0)
+    if shader.mode == "lit":
+        scene.add(_sky_dome(world, shader.headroom), pose=np.r_[np.c_[np.eye(3), eye], [[0, 0, 0, 1]]])
     lamps: list[tuple[Part, np.ndarray, tuple]] = []
+    bodies = []
     for actor in world.actors:
         moving = float(np.linalg.norm(actor.velocity)) > 0.5
         lit = shader.mode == "pbr" and moving  # night: moving vehicles' lamps glow; parked stay off
-        body = [p for p in actor.parts if not (lit and p.material.name in EMISSIVE)]
-        code = (actor.id % 256, actor.id // 256, 0)
-        node = scene.add(_flat_mesh(body, shader, actor.pose[:3, :3], moving), pose=actor.pose)
-        seg[node] = code
-        lamps += [(p, actor.pose, code) for p in actor.parts if lit and p.material.name in EMISSIVE]
+        bodies.append(([p for p in actor.parts if not (lit and p.material.name in EMISSIVE)],
+                       actor.pose, moving))
+        lamps += [(p, actor.pose, _seg_code(actor.id)) for p in actor.parts
+                  if lit and p.material.name in EMISSIVE]
+    for actor, mesh in zip(world.actors, _actor_meshes(bodies, shader)):
+        seg[scene.add(mesh, pose=actor.pose)] = _seg_code(actor.id)
     for part, pose, code in lamps:
         mat = pyrender.MetallicRoughnessMaterial(baseColorFactor=(0.0, 0.0, 0.0, 1.0),
                                                  emissiveFactor=EMISSIVE[part.material.name],
                                                  doubleSided=True)
-        seg[scene.add(_flat_mesh([part], None, np.eye(3), True, mat), pose=pose)] = code
-    rig = world.rig
-    pose, residual = camera_node_pose(rig.cam2_from_world())
+        seg[scene.add(_lamp_mesh(part, mat), pose=pose)] = code
+    pose, residual = camera_node_pose(cam2_from_world)
     scene.add(_ExactCamera(rig.intrinsics(), residual), pose=pose)
     if shader.mode == "pbr":
         z = shader.sun
@@ -197,7 +413,30 @@ def build_scene(world: World) -> tuple[pyrender.Scene, dict, int]:
             p[:3, 3] += pose[:3, :3] @ np.array([dy, -0.9, 0.0])
             scene.add(pyrender.SpotLight(color=(1.0, 0.95, 0.85), intensity=800.0,
                                          innerConeAngle=0.15, outerConeAngle=0.45), pose=p)
-    return scene, seg, RenderFlags.NONE if shader.mode == "pbr" else RenderFlags.FLAT
+    flags = {"pbr": RenderFlags.NONE, "thermal": RenderFlags.FLAT,
+             "lit": RenderFlags.FLAT | RenderFlags.RGBA}[shader.mode]
+    return scene, seg, flags
+
+
+def _shade_tint(time: str) -> np.ndarray:
+    """Gamma-encoded colour of skylight against sunlight plus skylight, luminance kept: shadows
+    are lit by the sky alone, which is bluer than the sun."""
+    sky = np.asarray(SKY[time]) / np.asarray(SUN[time])
+    return (sky / (sky @ np.array([0.2126, 0.7152, 0.0722]))) ** (1 / 2.2)
+
+
+def shade(world: World, color: np.ndarray, depth: np.ndarray) -> np.ndarray:
+    """The lit colour pass (RGBA, alpha = the light left in shadow) with the sun's shadows
+    applied, as (H, W, 3) uint8."""
+    rgb = color[..., :3]
+    if not world.appearance.shadows:
+        return rgb
+    rig = world.rig
+    depth_of_shadow = sun_shadow(world, depth, rig.intrinsics(), rig.cam2_from_world(),
+                                 _to_sun(world.light), color[..., 3] < 250)
+    rest = color[..., 3:4].astype(np.float32) / 255.0 * _shade_tint(world.light.time)
+    factor = 1.0 - depth_of_shadow[..., None] * (1.0 - rest)
+    return np.clip(np.round(rgb * factor), 0, 255).astype(np.uint8)
 
 
 def render(world: World) -> RenderOutput:
@@ -209,4 +448,7 @@ def render(world: World) -> RenderOutput:
     # third of a pixel off the pixel centre.
     ids, depth = r.render(scene, flags=RenderFlags.SEG, seg_node_map=seg)
     instance = ids[..., 0].astype(np.uint16) + 256 * ids[..., 1].astype(np.uint16)
-    return RenderOutput(np.ascontiguousarray(color[..., :3]), depth.astype(np.float32), instance)
+    lit = bool(flags & RenderFlags.RGBA)
+    rgb = shade(world, color, depth) if lit else color[..., :3]
+    return RenderOutput(np.ascontiguousarray(rgb), depth.astype(np.float32), instance,
+                        HEADROOM if lit else 1.0)

@@ -19,7 +19,7 @@ from .road import RoadLayout
 from .scenery import Frontage, Obstacle, build_scenery, plan_frontage
 from .spec import SceneSpec
 from .usermesh import user_recipe
-from .world import Actor, Light, Weather, World
+from .world import Actor, Appearance, CameraResponse, Light, Weather, World
 
 MARGIN = 0.3  # metres of free space kept around every actor footprint
 VERGE_REACH = 60.0  # cross-street traffic runs from -60 to 60 m across the main road
@@ -30,7 +30,7 @@ EGO_FOOTPRINT = shapely.box(-2.9, -1.0, 6.3, 1.0)
 def _values(spec: SceneSpec, seed: int, frame: int) -> dict:
     """Every factor of the spec drawn for this frame, each from its own stream."""
     out = {}
-    for section in ("road", "traffic", "clutter", "rig", "light", "weather"):
+    for section in ("road", "traffic", "clutter", "rig", "light", "weather", "appearance", "camera"):
         model = getattr(spec, section)
         for name in type(model).model_fields:
             v = getattr(model, name)
@@ -38,6 +38,11 @@ def _values(spec: SceneSpec, seed: int, frame: int) -> dict:
             out[key] = v.sample(factor_rng(seed, frame, key)) if hasattr(v, "sample") else v
     out["sensor"] = spec.sensor.sample(factor_rng(seed, frame, "sensor"))
     return out
+
+
+def _plain(value):
+    """A drawn factor value as a plain Python bool or float."""
+    return value if isinstance(value, bool) else float(value)
 
 
 def _footprint(pose: np.ndarray, l: float, w: float, margin: float = MARGIN) -> shapely.Polygon:
@@ -299,7 +304,10 @@ def sample_world(spec: SceneSpec, seed: int, frame_index: int) -> World:
                   float(v["light.sun_elevation_deg"]), float(v["light.sun_azimuth_deg"]))
     weather = Weather(float(v["weather.fog_extinction"]), float(v["weather.rain_rate"]),
                       float(v["weather.wind"]))
+    appearance = Appearance(**{k: _plain(v[f"appearance.{k}"]) for k in Appearance.__dataclass_fields__})
+    camera = CameraResponse(**{k: _plain(v[f"camera.{k}"]) for k in CameraResponse.__dataclass_fields__})
     return World(actors=actors, static=static, weather=weather,
                  lidar_pose=rig.reference_pose.copy(), ego_velocity=ego_velocity, rig=rig,
-                 light=light, sensor=str(v["sensor"]), scenery=scenery, seed=int(seed),
+                 light=light, appearance=appearance, camera=camera, sensor=str(v["sensor"]),
+                 scenery=scenery, seed=int(seed),
                  frame_index=int(frame_index))

@@ -1,6 +1,7 @@
 """Static scenery: road surface, lane markings, curbs, sidewalks, verges, buildings, trees, poles,
-fences. A pure function of its parameters (kept in `World.scenery` and in meta/), merged into one
-part per material so the renderer and the LiDAR see few large meshes.
+fences, street furniture (signs, signals, bins, bollards, cycle stands). A pure function of its
+parameters (kept in `World.scenery` and in meta/), merged into one part per material so the
+renderer and the LiDAR see few large meshes.
 """
 
 from __future__ import annotations
@@ -14,7 +15,9 @@ import trimesh
 
 # The scenery's materials at 905 nm and their sources: simgen.materials.
 from .materials import (ASPHALT, BARK, CONCRETE, FACADE_REFLECTIVITY, FENCE, FOLIAGE,  # noqa: F401
-                        FOREST_FLOOR, MARKING, METAL, SAND, SIDEWALK, VERGE)
+                        FOREST_FLOOR, MARKING, METAL, SAND, SIDEWALK, SIGN_BLUE, SIGN_RED, SIGN_WHITE,
+                        SIGN_YELLOW, TRIM, VERGE, paint_material, signal_lens)
+from .meshes import box, extrude
 from .road import RoadLayout
 from .world import Material, Part
 
@@ -118,6 +121,7 @@ class _Meshes:
         self.by_mat: dict[Material, list[trimesh.Trimesh]] = {}
         self.obstacles: list[Obstacle] = []
         self.clear = clear
+        self.sight = list(clear)  # the caller's keep-clear areas: even the signals keep off them
 
     def add(self, mat: Material, mesh: trimesh.Trimesh) -> None:
         self.by_mat.setdefault(mat, []).append(mesh)
@@ -714,6 +718,220 @@ def _build_frontage(road: RoadLayout, plan: Frontage, clutter: dict, ground: Mat
                    clutter["pole_spacing"], rng, out)
 
 
+# --- Street furniture (clutter.furniture) -----------------------------------------------------
+# On the sidewalks of both street models, after everything else, from its own random stream; each
+# piece keeps off the keep-clear areas, the obstacles lower than its top and the pieces before it.
+# `clutter.furniture` scales the densities below. German rules again, KITTI being Karlsruhe's.
+#
+# Traffic signs. More than 20 million in Germany, on average one every 28 m of road, motorways
+# included (press figures): 3.6 per 100 m of road, 1.8 per side. VwV-StVO: lower edge 2.0 m above
+# footways; the edge nearest the carriageway 0.5 m from it in town (never less than 0.3 m); posts
+# and backs grey (METAL), the common post a 60.3 mm steel tube. Sizes: VwV-StVO size 2, the one
+# for 50-100 km/h: circle 600 mm, triangle 900 mm a side, square 600 mm; the stop octagon and the
+# priority diamond taken as 600 mm (no table at hand). Kinds equally often (no survey found).
+SIGNS_PER_100M = 1.8
+SIGN_LOWER_EDGE, SIDE_CLEARANCE, SIGN_POST_R = 2.0, 0.5, 0.03
+# kind: outer (corners, circumradius m, phase deg) and sheeting, inner field (or None) and sheeting;
+# the fields' proportions read off the StVO's drawings.
+SIGNS = {
+    "prohibition": ((12, 0.30, 0.0), SIGN_RED, (12, 0.24, 0.0), SIGN_WHITE),
+    "mandatory": ((12, 0.30, 0.0), SIGN_BLUE, None, None),
+    "no_stopping": ((12, 0.30, 0.0), SIGN_RED, (12, 0.24, 0.0), SIGN_BLUE),
+    "warning": ((3, 0.52, 90.0), SIGN_RED, (3, 0.37, 90.0), SIGN_WHITE),
+    "yield": ((3, 0.52, -90.0), SIGN_RED, (3, 0.37, -90.0), SIGN_WHITE),
+    "stop": ((8, 0.325, 22.5), SIGN_RED, None, None),
+    "priority": ((4, 0.42, 0.0), SIGN_WHITE, (4, 0.30, 0.0), SIGN_YELLOW),
+    "crossing": ((4, 0.42, 45.0), SIGN_BLUE, (3, 0.25, 90.0), SIGN_WHITE),
+}
+# Traffic signals at every corner of the intersection, each facing the traffic that arrives there
+# (the generated intersection joins multi-lane urban streets: signalised; no survey of the share).
+# Lower edge of the head 2.10 m above the footway, 0.3 m at least from the carriageway (RSA/RiLSA);
+# a three-lamp head of 200 mm lenses, about 0.30 x 0.85 x 0.25 m in a 0.55 x 1.05 m black board
+# (makers' drawings; no standard found), on a mast of about 140 mm.
+SIGNAL_LOWER_EDGE, SIGNAL_MAST_R = 2.10, 0.07
+# Which lamp is lit: RiLSA's amber lasts 3 s at 50 km/h in cycles of typically 60-90 s, so about
+# 5 % of the time; red and green share the rest (no survey). The cross street shows red unless the
+# main road does. Lens colours (linear RGB) lit and dark.
+SIGNAL_PHASES, SIGNAL_SHARES = ("red", "amber", "green"), (0.475, 0.05, 0.475)
+LENSES = {"red": ((1.0, 0.06, 0.03), (0.10, 0.02, 0.02)), "amber": ((1.0, 0.50, 0.02), (0.10, 0.07, 0.01)),
+          "green": ((0.08, 1.0, 0.45), (0.02, 0.09, 0.06))}
+# Litter bins: Hamburg has 8,850 public bins, most of 42 l, hung on posts (Hamburger Abendblatt),
+# along about 4,000 km of streets: 0.22 per 100 m of street, 0.11 per side. A 42 l drum is 0.36 m
+# across and 0.45 m high; its top at 1.0 m (no figure found). Colours: Berlin's orange, Hamburg's
+# red, moss green and anthracite (RAL 2000, 3000, 6005, 7016), equally often (no survey found).
+BINS_PER_100M = 0.11
+BIN_R, BIN_H, BIN_TOP = 0.18, 0.45, 1.0
+BIN_COLOURS = ((0.70, 0.16, 0.0), (0.45, 0.01, 0.01), (0.03, 0.06, 0.04), (0.02, 0.03, 0.03))
+# Bollards keeping cars off the sidewalk: steel tubes of 76-108 mm, 0.9-1.0 m high, most with a
+# white retro-reflective band (makers' catalogues; no standard found), in rows of 3-6 with gaps a
+# car cannot pass (1.4 m between centres). Rows per side: no survey found, 0.5 per 100 m.
+BOLLARD_ROWS_PER_100M = 0.5
+BOLLARD_R, BOLLARD_H, BOLLARD_PITCH, BOLLARD_ROW = 0.045, 0.95, 1.4, (3, 7)
+# Cycle stands (Anlehnbuegel): 48 mm tube, about 0.8 m high and 1.0 m long, 1.2 m apart for two
+# bikes each (ADFC's recommendation), across the sidewalk, in groups of 2-6; only on sidewalks of
+# at least 2.5 m, RASt 06's standard width. Groups per side: no survey found, 0.3 per 100 m.
+STAND_GROUPS_PER_100M = 0.3
+STAND_R, STAND_H, STAND_L, STAND_PITCH, STAND_GROUP, STAND_SIDEWALK = 0.024, 0.8, 1.0, 1.2, (2, 7), 2.5
+
+
+def _posed(m: trimesh.Trimesh, T: np.ndarray) -> trimesh.Trimesh:
+    return trimesh.Trimesh(m.vertices @ T[:3, :3].T + T[:3, 3], m.faces, process=False)
+
+
+def _regular(n: int, r: float, phase_deg: float) -> np.ndarray:
+    """A regular polygon's corners (y, z) about the origin."""
+    a = np.radians(phase_deg) + 2 * np.pi * np.arange(n) / n
+    return np.c_[r * np.cos(a), r * np.sin(a)]
+
+
+def _plate(poly: np.ndarray, x0: float, x1: float, z: float) -> trimesh.Trimesh:
+    """A flat plate of a convex outline (y, z about height z), facing +x from x0 to x1."""
+    return extrude(poly + [0.0, z], 0, x0, x1)
+
+
+def _column(x: float, y: float, r: float, z0: float, z1: float) -> trimesh.Trimesh:
+    return _placed(_UNIT_CYLINDER, [r, r, z1 - z0], [x, y, (z0 + z1) / 2])
+
+
+class _Furnisher:
+    """Places pieces of furniture (parts in the world frame and their obstacles) where they fit."""
+
+    def __init__(self, road: RoadLayout, out: _Meshes):
+        self.road, self.out = road, out
+        self.bases = np.array([o.base for o in out.obstacles])
+        self.tree = shapely.STRtree([o.polygon for o in out.obstacles])
+        self.placed: list[shapely.Polygon] = []
+
+    def pose(self, side: int, s: float, inset: float, yaw: float = 0.0) -> np.ndarray:
+        """World pose `inset` metres behind the curb of `side`, on the sidewalk, x turned by yaw
+        from the road's heading."""
+        curb = self.road.right_curb if side < 0 else self.road.left_curb
+        return self.road.pose(s, curb + side * inset, 0.0, yaw)
+
+    def add(self, parts: list[tuple[Material, trimesh.Trimesh]], obstacles: list[Obstacle],
+            corner: bool = False) -> bool:
+        """Adds the piece unless it stands in a keep-clear area (at a corner: a sight line only),
+        on an obstacle lower than its top, or on a piece placed before."""
+        v = np.concatenate([m.vertices for _, m in parts])
+        fp, top = shapely.convex_hull(shapely.MultiPoint(v[:, :2])), float(v[:, 2].max())
+        if any(fp.intersects(c) for c in (self.out.sight if corner else self.out.clear)):
+            return False
+        hits = self.tree.query(fp, predicate="intersects")
+        if np.any(self.bases[hits] < top) or any(fp.intersects(p) for p in self.placed):
+            return False
+        for mat, m in parts:
+            self.out.add(mat, m)
+        self.out.obstacles += obstacles
+        self.placed.append(fp)
+        return True
+
+
+def _sign(f: _Furnisher, side: int, s: float, kind: str) -> None:
+    """A sign on its post behind the curb, facing the traffic on its side (the right side's
+    faces look back along -s)."""
+    (n, r, ph), outer_mat, inner, inner_mat = SIGNS[kind]
+    outer = _regular(n, r, ph)
+    ch = f.road.curb_height
+    z = ch + SIGN_LOWER_EDGE - outer[:, 1].min()
+    T = f.pose(side, s, SIDE_CLEARANCE + outer[:, 0].max(), np.pi if side < 0 else 0.0)
+    post = _column(-0.02 - SIGN_POST_R, 0.0, SIGN_POST_R, ch, z + outer[:, 1].max())
+    local = [(METAL, post), (METAL, _plate(outer, -0.02, 0.0, z)), (outer_mat, _plate(outer, 0.0, 0.003, z))]
+    if inner is not None:
+        local.append((inner_mat, _plate(_regular(*inner), 0.003, 0.006, z)))
+    parts = [(mat, _posed(m, T)) for mat, m in local]
+    plate = shapely.convex_hull(shapely.MultiPoint(np.concatenate([m.vertices[:, :2] for _, m in parts[1:]])))
+    f.add(parts, [Obstacle(_footprint(parts[0][1]).buffer(0.1)),
+                  Obstacle(plate, base=ch + SIGN_LOWER_EDGE)])
+
+
+def _signal(f: _Furnisher, T: np.ndarray, lit: str) -> None:
+    """A signal head on its mast at pose T (x: where the lamps face), `lit` the lamp that is on."""
+    ch, m = f.road.curb_height, SIGNAL_MAST_R
+    z0 = ch + SIGNAL_LOWER_EDGE
+    local = [(METAL, _column(0.0, 0.0, m, ch, z0 + 1.05)),
+             (TRIM, box(m + 0.20, m + 0.215, -0.275, 0.275, z0, z0 + 1.05)),
+             (TRIM, box(m, m + 0.25, -0.15, 0.15, z0 + 0.10, z0 + 0.95))]
+    for k, phase in enumerate(SIGNAL_PHASES):  # red on top
+        colour = LENSES[phase][0 if phase == lit else 1]
+        local.append((signal_lens(colour), _plate(_regular(8, 0.10, 22.5), m + 0.25, m + 0.265,
+                                                   z0 + 0.795 - 0.27 * k)))
+    parts = [(mat, _posed(mesh, T)) for mat, mesh in local]
+    head = shapely.convex_hull(shapely.MultiPoint(np.concatenate([x.vertices[:, :2] for _, x in parts[1:]])))
+    f.add(parts, [Obstacle(_footprint(parts[0][1]).buffer(0.1)), Obstacle(head, base=z0)], corner=True)
+
+
+def _signals(f: _Furnisher, rng: np.random.Generator) -> None:
+    """One signal at each corner of the intersection, SIGNAL clearance from both curbs, facing
+    the traffic that arrives at that corner (right-hand traffic)."""
+    road = f.road
+    main = SIGNAL_PHASES[int(rng.choice(3, p=SIGNAL_SHARES))]
+    cross = "green" if main == "red" else "red"
+    off = SIDE_CLEARANCE + 0.15  # the head's half width beyond the mast
+    # (side, before the crossing, lamp lit, facing: main-road traffic along -s/+s, cross traffic -y/+y)
+    for side, before, lit, yaw in ((-1, True, main, np.pi), (1, False, main, 0.0),
+                                   (-1, False, cross, -np.pi / 2), (1, True, cross, np.pi / 2)):
+        s = road.cross_s + (-1 if before else 1) * (road.cross_half_width + off)
+        _signal(f, f.pose(side, s, off, yaw), lit)
+
+
+def _bin(f: _Furnisher, side: int, s: float, colour) -> None:
+    """A drum hung on the side of its post."""
+    ch = f.road.curb_height
+    T = f.pose(side, s, SIDE_CLEARANCE + BIN_R)
+    local = [(METAL, _column(0.0, 0.0, SIGN_POST_R, ch, ch + BIN_TOP + 0.1)),
+             (paint_material("bin", colour), _column(SIGN_POST_R + BIN_R, 0.0, BIN_R, ch + BIN_TOP - BIN_H,
+                                                     ch + BIN_TOP))]
+    parts = [(mat, _posed(m, T)) for mat, m in local]
+    f.add(parts, [Obstacle(_footprint(m).buffer(0.05)) for _, m in parts])
+
+
+def _bollards(f: _Furnisher, side: int, s: float, n: int) -> None:
+    """A row of n bollards along the curb from s, each with a white band below its top."""
+    ch = f.road.curb_height
+    parts = []
+    for k in range(n):
+        T = f.pose(side, s + k * BOLLARD_PITCH, SIDE_CLEARANCE + BOLLARD_R)
+        parts += [(METAL, _posed(_column(0.0, 0.0, BOLLARD_R, ch, ch + BOLLARD_H), T)),
+                  (SIGN_WHITE, _posed(_column(0.0, 0.0, BOLLARD_R + 0.003, ch + BOLLARD_H - 0.15,
+                                              ch + BOLLARD_H - 0.08), T))]
+    f.add(parts, [Obstacle(_footprint(m).buffer(0.1)) for _, m in parts[::2]])
+
+
+def _stands(f: _Furnisher, side: int, s: float, n: int) -> None:
+    """n cycle stands across the sidewalk from s: two legs and a top bar each."""
+    ch, r, h, half = f.road.curb_height, STAND_R, STAND_H, STAND_L / 2
+    parts = []
+    for k in range(n):
+        T = f.pose(side, s + k * STAND_PITCH, SIDE_CLEARANCE + half, np.pi / 2)
+        for m in (box(-half, -half + 2 * r, -r, r, ch, ch + h), box(half - 2 * r, half, -r, r, ch, ch + h),
+                  box(-half, half, -r, r, ch + h - 2 * r, ch + h)):
+            parts.append((METAL, _posed(m, T)))
+    f.add(parts, [Obstacle(_footprint(m).buffer(0.1)) for _, m in parts])
+
+
+def _furniture(road: RoadLayout, clutter: dict, seed: int, out: _Meshes) -> None:
+    """Signals at the intersection, then signs, bins, bollards and cycle stands along both
+    sidewalks, Poisson in number at the densities above times `clutter.furniture`."""
+    scale = float(clutter.get("furniture", 0.0))  # scenery parameters from before it: none
+    if scale <= 0:
+        return
+    rng = np.random.default_rng([seed, 4])
+    f = _Furnisher(road, out)
+    if road.cross_s is not None:
+        _signals(f, rng)
+    length = (road.s_max - road.s_min) / 100.0
+    for side in (-1, 1):
+        for s in rng.uniform(road.s_min, road.s_max, rng.poisson(scale * SIGNS_PER_100M * length)):
+            _sign(f, side, s, list(SIGNS)[int(rng.integers(len(SIGNS)))])
+        for s in rng.uniform(road.s_min, road.s_max, rng.poisson(scale * BINS_PER_100M * length)):
+            _bin(f, side, s, BIN_COLOURS[int(rng.integers(len(BIN_COLOURS)))])
+        for s in rng.uniform(road.s_min, road.s_max, rng.poisson(scale * BOLLARD_ROWS_PER_100M * length)):
+            _bollards(f, side, s, int(rng.integers(*BOLLARD_ROW)))
+        groups = rng.poisson(scale * STAND_GROUPS_PER_100M * length)
+        for s in rng.uniform(road.s_min, road.s_max, groups if road.sidewalk_width >= STAND_SIDEWALK else 0):
+            _stands(f, side, s, int(rng.integers(*STAND_GROUP)))
+
+
 def build_scenery(params: dict) -> tuple[list[Part], list[Obstacle]]:
     """Static parts (world frame) and their footprints, from the scenery parameters.
 
@@ -728,6 +946,7 @@ def build_scenery(params: dict) -> tuple[list[Part], list[Obstacle]]:
     plan = plan_frontage(params)
     if plan is not None:
         _build_frontage(road, plan, clutter, ground, int(params["seed"]), out)
+        _furniture(road, clutter, int(params["seed"]), out)
         return [Part(trimesh.util.concatenate(ms), mat) for mat, ms in out.by_mat.items()], out.obstacles
     rng = np.random.default_rng(params["seed"])
     _ground(road, ground, out)
@@ -743,5 +962,6 @@ def build_scenery(params: dict) -> tuple[list[Part], list[Obstacle]]:
         _trees(road, side, outer, tree_factor * clutter["trees_per_100m"], woods, rng, out)
         if clutter["pole_spacing"] > 0:
             _poles(road, side, curb, clutter["pole_spacing"], rng, out)
+    _furniture(road, clutter, int(params["seed"]), out)
     parts = [Part(trimesh.util.concatenate(ms), mat) for mat, ms in out.by_mat.items()]
     return parts, out.obstacles

@@ -93,6 +93,10 @@ class ClutterSpec(Strict):
     # (elsewhere it is ignored).
     frontage: dict[str, float] = Field(default_factory=dict)
     side_streets_per_100m: factor(float, 0.0, 5.0) = 0.0  # T-junctions per side; with frontage
+    # Street furniture on the sidewalks (simgen.scenery, "Street furniture"): a factor on the
+    # documented densities of traffic signs, litter bins, bollards and cycle stands; traffic
+    # signals at the intersection whenever > 0. 0: none (as before).
+    furniture: factor(float, 0.0, 5.0) = 1.0
 
     @field_validator("frontage")
     @classmethod
@@ -145,6 +149,27 @@ class LightSpec(Strict):
     sun_intensity: factor(float, 0.0, 1.0) = 1.0  # share of full sun
     sun_elevation_deg: factor(float, 0.0, 90.0) = 45.0
     sun_azimuth_deg: factor(float, -360.0, 360.0) = 30.0  # from world +x towards +y
+
+
+class AppearanceSpec(Strict):
+    """What the camera sees of surfaces and sky (simgen.render, simgen.textures)."""
+
+    textures: bool = True  # procedural surface detail on the scenery
+    shadows: bool = True  # the sun's shadows (day and dusk)
+    cloud_cover: factor(float, 0.0, 1.0) = 0.3  # share of the sky under cloud
+    colour_jitter: factor(float, 0.0, 1.0) = 0.08  # log sd of the scenery's colour gains per frame
+
+
+class CameraSpec(Strict):
+    """The colour camera's response (simgen.camera; defaults: KITTI's Flea2 colour cameras)."""
+
+    exposure_ev: factor(float, -4.0, 4.0) = 0.0  # offset from the auto-exposure, in stops
+    white_balance_sd: factor(float, 0.0, 0.5) = 0.03  # log sd of the red and blue gains
+    corner_illumination: factor(float, 0.2, 1.0) = 0.75  # vignetting at the image corner
+    blur_sigma_px: factor(float, 0.0, 5.0) = 0.5  # lens and rectification blur
+    full_well_e: factor(float, 0.0, 1e6) = 10000.0  # electrons at the white level; 0 = no noise
+    read_noise_e: factor(float, 0.0, 1000.0) = 10.0
+    bayer: bool = True  # RGGB colour filter array and demosaicing
 
 
 class WeatherSpec(Strict):
@@ -207,6 +232,8 @@ class SceneSpec(Strict):
     rig: Annotated[OnboardRig | GantryRig | OrbitRig, Field(discriminator="type")] = OnboardRig()
     light: LightSpec = LightSpec()
     weather: WeatherSpec = WeatherSpec()
+    appearance: AppearanceSpec = AppearanceSpec()
+    camera: CameraSpec = CameraSpec()
     sensor: factor(str, options=("normal", "night_vision", "thermal")) = "normal"
     labels: LabelRules = LabelRules()
     lidar: LidarSection | None = None

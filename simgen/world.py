@@ -75,6 +75,31 @@ class Light:
     sun_azimuth_deg: float = 30.0
 
 
+@dataclass(frozen=True)
+class Appearance:
+    """What the camera sees of surfaces and sky beyond their flat colour (simgen.render): the
+    procedural textures (simgen.textures), sun shadows, the share of the sky under cloud, and a
+    per-frame spread of the scenery's colours (log-normal sd of each channel's gain)."""
+
+    textures: bool = True
+    shadows: bool = True
+    cloud_cover: float = 0.3
+    colour_jitter: float = 0.08
+
+
+@dataclass(frozen=True)
+class CameraResponse:
+    """The colour camera between the light and the 8-bit image (simgen.camera)."""
+
+    exposure_ev: float = 0.0  # offset from the auto-exposure (log-average luminance to 0.18)
+    white_balance_sd: float = 0.03  # log sd of the red and blue gains against green
+    corner_illumination: float = 0.75  # vignetting: relative illumination at the image corner
+    blur_sigma_px: float = 0.5  # optics and rectification, a Gaussian of this sd in pixels
+    full_well_e: float = 10000.0  # electrons at the white level (shot noise); 0 = no noise
+    read_noise_e: float = 10.0
+    bayer: bool = True  # sample through an RGGB colour filter array, then demosaic
+
+
 @dataclass
 class Actor:
     """A labelled object: parts in its own frame, a pose at t = 0 and a constant motion."""
@@ -126,6 +151,8 @@ class World:
     # parameters that rebuild `static` (simgen.scenery.build_scenery), and where it came from.
     rig: object | None = None
     light: Light = field(default_factory=Light)
+    appearance: Appearance = field(default_factory=Appearance)
+    camera: CameraResponse = field(default_factory=CameraResponse)
     sensor: str = "normal"  # normal, night_vision or thermal
     scenery: dict = field(default_factory=dict)
     seed: int = 0

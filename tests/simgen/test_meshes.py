@@ -5,18 +5,30 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import trimesh
+from scipy.spatial import ConvexHull
 
-from simgen.meshes import SIZE_STATS, build_actor_parts, sample_recipe
+from simgen.meshes import (
+    BODY_SHARE,
+    HATCH_ONLY_LENGTH,
+    RIM_SHARE,
+    SIZE_STATS,
+    SUV_HEIGHT,
+    _car_layout,
+    build_actor_parts,
+    sample_recipe,
+)
 from simgen.usermesh import user_recipe
 
 
 @pytest.mark.parametrize("cls", ["Car", "Van", "Truck", "Bus", "Pedestrian", "Cyclist"])
-def test_every_part_is_closed_and_the_extent_is_the_drawn_size(cls):
+def test_every_part_is_closed_and_convex_and_the_extent_is_the_drawn_size(cls):
     rng = np.random.default_rng(1)
     for _ in range(5):
         recipe = sample_recipe(cls, rng)
         parts = build_actor_parts(recipe)
         assert all(p.mesh.is_watertight and p.mesh.is_volume for p in parts)
+        for p in parts:  # convex: the part fills its own hull (labels.py relies on it)
+            assert p.mesh.volume == pytest.approx(ConvexHull(p.mesh.vertices).volume, rel=1e-9)
         v = np.concatenate([p.mesh.vertices for p in parts])
         h, w, l = recipe["dims"]
         np.testing.assert_allclose(v.min(axis=0), [-l / 2, -w / 2, 0.0], atol=1e-12)
@@ -29,8 +41,73 @@ def test_every_part_is_closed_and_the_extent_is_the_drawn_size(cls):
 def test_vehicle_parts_have_distinct_lidar_materials():
     parts = build_actor_parts(sample_recipe("Car", np.random.default_rng(0)))
     refl = {p.material.name: p.material.reflectivity for p in parts}
-    assert {"paint", "glass", "tyre", "plate", "headlight", "taillight"} <= set(refl)
+    assert {"paint", "glass", "tyre", "plate", "headlight", "taillight", "trim", "rim"} <= set(refl)
     assert refl["plate"] > refl["paint"] > refl["glass"] > refl["tyre"]
+    assert refl["rim"] > refl["trim"] > refl["tyre"]  # aluminium-grey rims, carbon-black plastics
+
+
+def _tyres_and_rims(parts):
+    return ([p.mesh.bounds for p in parts if p.material.name == "tyre"],
+            [p.mesh.bounds for p in parts if p.material.name == "rim"])
+
+
+@pytest.mark.parametrize("cls", ["Car", "Van", "Truck", "Bus"])
+def test_wheels_are_round_and_carry_a_rim_on_the_outer_face(cls):
+    rng = np.random.default_rng(4)
+    for _ in range(10):
+        recipe = sample_recipe(cls, rng)
+        tyres, rims = _tyres_and_rims(build_actor_parts(recipe))
+        assert len(tyres) == len(rims) >= 4
+        for lo, hi in tyres:
+            d = hi - lo
+            assert d[0] == pytest.approx(d[2], rel=0.03)  # round in metres, whatever l and h
+            centre = (lo + hi) / 2
+            rim = [b for b in rims if np.allclose((b[0] + b[1])[[0, 2]] / 2, centre[[0, 2]], atol=1e-9)
+                   and np.sign(b[0][1] + b[1][1]) == np.sign(centre[1])]
+            assert len(rim) == 1
+            (rlo, rhi), left = rim[0], centre[1] > 0
+            assert rhi[2] - rlo[2] == pytest.approx(RIM_SHARE * d[2], rel=1e-9)
+            # standing on the tyre's outer face, outwards, never beyond the box
+            rim_inner, tyre_outer = (rlo[1], hi[1]) if left else (rhi[1], lo[1])
+            assert rim_inner == pytest.approx(tyre_outer, abs=1e-9)
+            assert max(abs(rlo[1]), abs(rhi[1])) <= recipe["dims"][1] / 2
+
+
+def test_mirrors_span_the_box_and_the_body_is_narrower():
+    rng = np.random.default_rng(5)
+    for _ in range(20):
+        recipe = sample_recipe("Car", rng)
+        _, w, _ = recipe["dims"]
+        parts = build_actor_parts(recipe)
+        body = parts[0].mesh.bounds  # the lower body comes first
+        assert body[1][1] == pytest.approx(BODY_SHARE * w / 2, rel=1e-3)
+        widest = [p for p in parts if np.isclose(p.mesh.bounds[1][1], w / 2, atol=1e-12)]
+        assert widest and all(p.mesh.bounds[0][0] > 0 for p in widest)  # mirrors, ahead of the centre
+
+
+def test_car_styles_follow_height_and_length():
+    """Tall cars get the SUV/MPV profile, short ones are hatchbacks; every style occurs in KITTI's
+    size distribution, and the roof of a sedan ends well before the tail, an estate's near it."""
+    rng = np.random.default_rng(6)
+    seen = set()
+    for _ in range(300):
+        recipe = sample_recipe("Car", rng)
+        h, _, l = recipe["dims"]
+        k = _car_layout(np.random.default_rng(recipe["seed"]), recipe["dims"])
+        seen.add(k.style)
+        assert (k.style == "suv") == (h >= SUV_HEIGHT)
+        if h < SUV_HEIGHT and l < HATCH_ONLY_LENGTH:
+            assert k.style == "hatchback"
+        roof_end = (k.roof[1] + l / 2) / l
+        assert roof_end > 0.25 if k.style == "sedan" else roof_end < 0.15
+    assert seen == {"sedan", "hatchback", "estate", "suv"}
+
+
+def test_a_car_stays_within_twice_the_old_triangle_budget():
+    """The previous car had 324 triangles; the renderer and the LiDAR pay for every one."""
+    rng = np.random.default_rng(7)
+    counts = [sum(len(p.mesh.faces) for p in build_actor_parts(sample_recipe("Car", rng))) for _ in range(50)]
+    assert max(counts) <= 2 * 324
 
 
 @pytest.mark.parametrize("cls", ["Car", "Pedestrian", "Cyclist"])

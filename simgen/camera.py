@@ -1,0 +1,83 @@
+"""The colour camera between the scene's light and the 8-bit image, in the order light meets it.
+
+KITTI's colour cameras are Point Grey Flea2 FL2-14S3C: 1/2" Sony ICX267 CCDs behind a Bayer
+colour filter array, whose frames the dataset publishes demosaiced, rectified and 8-bit. Each
+step below is the physical one, with `simgen.world.CameraResponse` holding its strength:
+
+1. exposure: automatic, the gain that brings the log-average scene luminance to middle grey,
+   0.18 of the white level (the "key" of Reinhard et al. 2002, "Photographic tone reproduction
+   for digital images"), times 2 ** exposure_ev: a bright sky weighs no more than its share of
+   the frame, and it and sunlit white saturate as they do in KITTI's frames;
+2. white balance: red and blue gains off by a log-normal error against green;
+3. vignetting: illumination falling to `corner_illumination` at the image corner, as cos^4 of
+   the field angle scaled to that value (lens data sheets give 50-85 % for compact lenses);
+4. blur: a Gaussian of `blur_sigma_px` for the lens and the bilinear rectification;
+5. the colour filter array: each pixel keeps one channel (RGGB);
+6. noise: shot noise of the collected electrons (Poisson, approximated by a Gaussian of
+   variance equal to the count) and read noise, at `full_well_e` electrons for the white level;
+7. demosaicing (OpenCV's bilinear Bayer interpolation) and the sRGB-like 1/2.2 gamma to 8 bits.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from .world import CameraResponse
+
+GAMMA = 2.2
+KEY = 0.18  # log-average luminance after exposure (Reinhard et al. 2002)
+LOG_FLOOR = 1e-4  # keeps black pixels out of the log average (Reinhard's delta)
+GAIN_LIMITS = (0.25, 8.0)  # an auto-exposure's range of gain and shutter, as factors
+
+
+def _luminance(lin: np.ndarray) -> np.ndarray:
+    return lin @ np.array([0.2126, 0.7152, 0.0722])
+
+
+def _vignetting(H: int, W: int, K: np.ndarray, corner: float) -> np.ndarray:
+    """(H, W) relative illumination: cos^4 of the field angle, rescaled to `corner` at the
+    farthest corner."""
+    u = (np.arange(W) - K[0, 2]) / K[0, 0]
+    v = (np.arange(H) - K[1, 2]) / K[1, 1]
+    cos4 = 1.0 / (1.0 + u[None, :] ** 2 + v[:, None] ** 2) ** 2
+    c4_min = float(cos4.min())
+    return 1.0 - (1.0 - cos4) * (1.0 - corner) / max(1.0 - c4_min, 1e-9)
+
+
+def expose(lin: np.ndarray, K: np.ndarray, cam: CameraResponse, rng: np.random.Generator) -> np.ndarray:
+    """Linear scene radiance (H, W, 3) float, 1 = a white surface at the reference light, to the
+    camera's 8-bit RGB image."""
+    H, W = lin.shape[:2]
+    log_average = float(np.exp(np.log(LOG_FLOOR + _luminance(lin[::4, ::4])).mean()))
+    gain = np.clip(KEY / log_average, *GAIN_LIMITS) * 2.0 ** cam.exposure_ev
+    wb = np.exp(rng.normal(0.0, cam.white_balance_sd, 3) * np.array([1.0, 0.0, 1.0]))
+    img = lin * (gain * wb)
+    if cam.corner_illumination < 1.0:
+        img = img * _vignetting(H, W, K, cam.corner_illumination)[..., None]
+    if cam.blur_sigma_px > 0:
+        img = cv2.GaussianBlur(img.astype(np.float32), (0, 0), cam.blur_sigma_px)
+    img = np.clip(img, 0.0, 1.0)
+    if cam.bayer:
+        raw = np.empty((H, W), np.float32)  # RGGB
+        raw[0::2, 0::2] = img[0::2, 0::2, 0]
+        raw[0::2, 1::2] = img[0::2, 1::2, 1]
+        raw[1::2, 0::2] = img[1::2, 0::2, 1]
+        raw[1::2, 1::2] = img[1::2, 1::2, 2]
+        raw = _noisy(raw, cam, rng)
+        raw16 = np.round(raw * 65535.0).astype(np.uint16)
+        # OpenCV names a pattern by the second row's first two pixels: RGGB is its "BayerBG".
+        img = cv2.cvtColor(raw16, cv2.COLOR_BayerBG2RGB).astype(np.float32) / 65535.0
+    else:
+        img = _noisy(img.astype(np.float32), cam, rng)
+    return np.round(np.clip(img, 0.0, 1.0) ** (1.0 / GAMMA) * 255.0).astype(np.uint8)
+
+
+def _noisy(signal: np.ndarray, cam: CameraResponse, rng: np.random.Generator) -> np.ndarray:
+    """Shot and read noise of a linear signal in [0, 1] (1 = full well), clipped to [0, 1]."""
+    if cam.full_well_e <= 0:
+        return signal
+    e = signal * cam.full_well_e
+    sd = np.sqrt(e + cam.read_noise_e ** 2) / cam.full_well_e
+    noise = rng.standard_normal(signal.shape, dtype=np.float32) * sd
+    return np.clip(signal + noise, 0.0, 1.0).astype(np.float32)

@@ -1,0 +1,220 @@
+"""Procedural surface detail for the camera: asphalt, paving, façades, grass, foliage, bark, wood.
+
+Each texture is a tile of multipliers on a material's flat colour (mean about 1, so a surface
+keeps the albedo its material gives it, and the LiDAR, which reads the material, agrees with the
+camera on average). Tiles are made in code from fractal noise synthesised in the frequency domain
+(white noise shaped by a 1/f^beta spectrum), which is periodic by construction: the tiles repeat
+without seams. A tile is a pure function of (kind, variant): each worker process builds the bank
+once and every frame picks variants from its own seed, so images stay byte-identical with any
+number of workers.
+
+`TILE_M` is the size of a tile in metres on the surface (the renderer maps world coordinates to
+texture coordinates with it); the feature sizes inside a tile are in metres too and come from
+the construction standards or common practice named beside them.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import cv2
+import numpy as np
+
+SIZE = 512  # texels per tile side
+# Multipliers up to MAX_GAIN are stored as uint8 (255 = MAX_GAIN: steps of 1 %); the renderer
+# scales the vertex colour by MAX_GAIN.
+MAX_GAIN = 2.5
+# One tile per kind and worker: a texture stays in the GL context only while consecutive frames
+# use it, and uploading one costs milliseconds on a software renderer; frames differ by the
+# tile's offset, scale and colour instead (simgen.render).
+VARIANTS = 1
+
+# Metres per tile (u, v) on the surface.
+TILE_M = {"asphalt": (6.0, 6.0), "marking": (4.0, 4.0), "paving": (3.0, 3.0),
+          "concrete": (3.0, 3.0), "grass": (4.0, 4.0), "soil": (4.0, 4.0), "sand": (4.0, 4.0),
+          "foliage": (2.5, 2.5), "bark": (1.0, 2.0), "planks": (2.4, 2.4), "metal": (2.0, 2.0),
+          "roof": (6.0, 6.0), "plaster": (6.0, 6.4), "brick": (6.0, 6.4)}
+# Façade tiles hold two window bays by two storeys: a bay of 3.0 m and a storey of 3.2 m
+# (residential storey heights 2.75-3.5 m floor to floor; a window per 2.5-3.5 m of front).
+BAY_M, STOREY_M = 3.0, 3.2
+
+
+def _fractal(rng: np.random.Generator, beta: float, size: int | tuple[int, int] = SIZE,
+             aspect: float = 1.0) -> np.ndarray:
+    """Zero-mean, unit-sd periodic noise of shape `size` (rows, columns) with a 1/f^beta
+    amplitude spectrum; `aspect` > 1 stretches features along the rows' direction (v)."""
+    rows, cols = (size, size) if isinstance(size, int) else size
+    fy = np.fft.fftfreq(rows)[:, None] * aspect
+    fx = np.fft.fftfreq(cols)[None, :]
+    f = np.hypot(fx, fy)
+    f[0, 0] = 1.0
+    amp = f ** -beta
+    amp[0, 0] = 0.0
+    spectrum = np.fft.fft2(rng.standard_normal((rows, cols))) * amp
+    n = np.real(np.fft.ifft2(spectrum))
+    return (n - n.mean()) / max(float(n.std()), 1e-12)
+
+
+def _grain(rng: np.random.Generator, sigma_px: float = 0.7) -> np.ndarray:
+    """Fine aggregate-like grain: white noise blurred by a Gaussian of sigma_px texels (in the
+    frequency domain, so it stays periodic), unit sd."""
+    f2 = np.fft.fftfreq(SIZE)[:, None] ** 2 + np.fft.fftfreq(SIZE)[None, :] ** 2
+    spectrum = np.fft.fft2(rng.standard_normal((SIZE, SIZE))) * np.exp(-2 * np.pi**2 * sigma_px**2 * f2)
+    n = np.real(np.fft.ifft2(spectrum))
+    return (n - n.mean()) / max(float(n.std()), 1e-12)
+
+
+def _grid_lines(period_px: float, width_px: float, size: int = SIZE) -> np.ndarray:
+    """1 on joints of a periodic line pattern along one axis (0..size texels), else 0."""
+    x = np.arange(size) % period_px
+    return ((x < width_px) | (x > period_px - width_px / 2)).astype(np.float32)
+
+
+def _asphalt(rng: np.random.Generator) -> np.ndarray:
+    """Grain of the aggregate, darker and lighter patches (repairs, wear), cracks, oil stains."""
+    m = 1.0 + 0.22 * _grain(rng) + 0.12 * _fractal(rng, 1.4)
+    patches = _fractal(rng, 2.6)
+    m *= np.where(patches > 1.1, 0.82, np.where(patches < -1.3, 1.12, 1.0))
+    ridge = np.abs(_fractal(rng, 2.0))
+    m *= np.where(ridge < 0.025, 0.55, 1.0)  # crack lines: the zero set of smooth noise
+    stains = _fractal(rng, 2.2)
+    m *= np.where(stains > 2.0, 0.75, 1.0)
+    return np.repeat(m[..., None], 3, axis=2)
+
+
+def _marking(rng: np.random.Generator) -> np.ndarray:
+    """Line paint worn through to the asphalt in patches (worn paint, about 10-20 % of the area)."""
+    wear = _fractal(rng, 1.8) + 0.35 * _grain(rng, 1.5)
+    m = np.where(wear > 1.0, 0.2, 1.0) * (1.0 + 0.06 * _grain(rng))
+    return np.repeat(m[..., None], 3, axis=2)
+
+
+def _paving(rng: np.random.Generator) -> np.ndarray:
+    """Concrete slabs of 0.5 m (DIN 485 paving slabs, 50 x 50 cm) with dark joints, each slab a
+    little lighter or darker, plus grain."""
+    per = SIZE * 0.5 / TILE_M["paving"][0]
+    joints = np.maximum(_grid_lines(per, 2.0)[None, :], _grid_lines(per, 2.0)[:, None])
+    idx = (np.arange(SIZE) // per).astype(int)
+    slab = rng.normal(1.0, 0.06, (idx.max() + 1, idx.max() + 1))[idx[:, None], idx[None, :]]
+    m = slab * (1.0 + 0.14 * _grain(rng) + 0.08 * _fractal(rng, 1.6)) * (1.0 - 0.5 * joints)
+    return np.repeat(m[..., None], 3, axis=2)
+
+
+def _concrete(rng: np.random.Generator) -> np.ndarray:
+    m = 1.0 + 0.08 * _grain(rng) + 0.08 * _fractal(rng, 1.8)
+    return np.repeat(m[..., None], 3, axis=2)
+
+
+def _grass(rng: np.random.Generator) -> np.ndarray:
+    """Blades (fine high-contrast noise), clumps, and dry yellow-brown patches."""
+    fine = _grain(rng, 0.8)
+    clumps = _fractal(rng, 1.5)
+    dry = np.clip(_fractal(rng, 2.4) - 0.6, 0.0, None)
+    v = np.exp(0.35 * fine + 0.2 * clumps)
+    return np.stack([v * (1.0 + 0.9 * dry), v * (1.0 + 0.25 * dry), v * (1.0 - 0.2 * dry)], axis=2)
+
+
+def _foliage(rng: np.random.Generator) -> np.ndarray:
+    """Leaf clusters and the dark gaps between them: strong contrast at a few centimetres, the
+    hue shifting from yellow-green to blue-green across the crown."""
+    leaves = _fractal(rng, 0.9) + 0.5 * _grain(rng, 1.2)
+    v = np.exp(0.6 * leaves) * np.where(leaves < -0.9, 0.2, 1.0)
+    hue = 0.06 * _fractal(rng, 2.0)
+    return np.stack([v * (1.0 + hue), v, v * (1.0 - hue)], axis=2)
+
+
+def _bark(rng: np.random.Generator) -> np.ndarray:
+    """Vertical furrows: noise stretched along the trunk."""
+    m = np.exp(0.30 * _fractal(rng, 1.2, aspect=8.0) + 0.10 * _grain(rng))
+    return np.repeat(m[..., None], 3, axis=2)
+
+
+def _planks(rng: np.random.Generator) -> np.ndarray:
+    """Vertical boards of 0.12 m with 1.5 cm gaps (a common board fence), grain along the boards."""
+    per = SIZE * 0.12 / TILE_M["planks"][0]
+    gaps = _grid_lines(per, per * 0.015 / 0.12 + 1.0)[None, :]
+    idx = (np.arange(SIZE) // per).astype(int)
+    board = rng.normal(1.0, 0.08, idx.max() + 1)[idx][None, :]
+    m = board * np.exp(0.12 * _fractal(rng, 1.3, aspect=10.0)) * (1.0 - 0.75 * gaps)
+    return np.repeat(m[..., None], 3, axis=2)
+
+
+def _metal(rng: np.random.Generator) -> np.ndarray:
+    m = 1.0 + 0.05 * _grain(rng) + 0.08 * _fractal(rng, 2.0, aspect=4.0)
+    return np.repeat(m[..., None], 3, axis=2)
+
+
+def _windows(rng: np.random.Generator, base: np.ndarray) -> np.ndarray:
+    """Two bays by two storeys of windows on a wall multiplier: 1.2-1.6 m wide, sill 0.9 m and
+    head 2.6 m above the floor (common residential window sizes), dark glass brighter towards
+    the top (the sky it mirrors), a light frame, a sill; curtains in some."""
+    m = base.copy()
+    px_u, px_v = SIZE / TILE_M["plaster"][0], SIZE / TILE_M["plaster"][1]
+    for bay in range(2):
+        for storey in range(2):
+            w = rng.uniform(1.2, 1.6)
+            u0 = int((bay * BAY_M + (BAY_M - w) / 2) * px_u)
+            u1 = int(u0 + w * px_u)
+            # Rows run down the image: v = 0 is the top of the tile (texture coordinates flip).
+            top = int(SIZE - (storey * STOREY_M + 2.6) * px_v)
+            bot = int(SIZE - (storey * STOREY_M + 0.9) * px_v)
+            f = 4  # frame, texels (about 5 cm)
+            m[top - f:bot + f, u0 - f:u1 + f] = 1.35
+            glass = np.linspace(0.45, 0.12, bot - top)[:, None, None] * rng.uniform(0.7, 1.3)
+            m[top:bot, u0:u1] = glass * np.array([0.95, 1.0, 1.1])
+            if rng.uniform() < 0.4:  # curtains
+                m[top:bot, u0:u1] = np.maximum(m[top:bot, u0:u1], rng.uniform(0.5, 0.9))
+            mid = (u0 + u1) // 2
+            m[top:bot, mid - 2:mid + 2] = 1.3  # mullion
+            m[bot + f:bot + 3 * f, u0 - 2 * f:u1 + 2 * f] = 1.15  # sill
+    return m
+
+
+def _plaster(rng: np.random.Generator) -> np.ndarray:
+    """Rendered wall with weathering streaks running down, and windows."""
+    wall = 1.0 + 0.08 * _grain(rng) + 0.08 * _fractal(rng, 1.8, aspect=4.0)
+    return _windows(rng, np.repeat(wall[..., None], 3, axis=2))
+
+
+def _brick(rng: np.random.Generator) -> np.ndarray:
+    """Stretcher bond of 240 x 71 mm bricks (German NF) in 10 mm mortar joints, and windows."""
+    px = SIZE / TILE_M["brick"][0]
+    # A whole number of courses and bricks per tile, so that the bond repeats without a seam.
+    course = SIZE / round(TILE_M["brick"][1] / 0.081)
+    length = SIZE / round(TILE_M["brick"][0] / 0.25)
+    v, u = np.mgrid[0:SIZE, 0:SIZE].astype(np.float32)
+    row = np.floor(v / course).astype(int)
+    shift = (row % 2) * length / 2
+    col = np.floor((u + shift) / length).astype(int)
+    mortar = ((v % course) < 0.010 * px) | (((u + shift) % length) < 0.010 * px)
+    tone = rng.normal(1.0, 0.10, (row.max() + 1, col.max() + 2))[row, col]
+    wall = np.where(mortar, 1.35, tone * (1.0 + 0.06 * _grain(rng)))
+    return _windows(rng, np.repeat(wall[..., None], 3, axis=2))
+
+
+def _roof(rng: np.random.Generator) -> np.ndarray:
+    m = 1.0 + 0.12 * _fractal(rng, 1.5) + 0.05 * _grain(rng)
+    return np.repeat(m[..., None], 3, axis=2)
+
+
+_MAKERS = {"asphalt": _asphalt, "marking": _marking, "paving": _paving, "concrete": _concrete,
+           "grass": _grass, "soil": _concrete, "sand": _concrete, "foliage": _foliage, "bark": _bark,
+           "planks": _planks, "metal": _metal, "plaster": _plaster, "brick": _brick, "roof": _roof}
+# Which texture a scene material wears, by Material.name; façades choose plaster or brick by
+# their colour (simgen.render). Materials not listed (actors, signs) stay flat.
+OF_MATERIAL = {"asphalt": "asphalt", "marking": "marking", "sidewalk": "paving", "curb": "concrete",
+               "verge": "grass", "forest_floor": "soil", "sand": "sand", "foliage": "foliage",
+               "bark": "bark", "fence": "planks", "pole": "metal"}
+
+
+@lru_cache(maxsize=None)
+def tile(kind: str, variant: int) -> np.ndarray:
+    """(SIZE, SIZE, 3) uint8 multipliers / MAX_GAIN of one texture variant, normalised to a mean
+    multiplier of 1 per channel."""
+    if kind not in _MAKERS:
+        raise KeyError(f"no texture kind {kind!r} (known: {sorted(_MAKERS)})")
+    rng = np.random.default_rng([sorted(_MAKERS).index(kind), int(variant), 7919])
+    m = np.clip(_MAKERS[kind](rng), 0.0, None)
+    for _ in range(4):  # mean one per channel, after the clip at MAX_GAIN
+        m = np.clip(m / m.reshape(-1, 3).mean(axis=0), 0.0, MAX_GAIN)
+    return np.clip(np.round(m / MAX_GAIN * 255.0), 0, 255).astype(np.uint8)
