@@ -1,6 +1,7 @@
-"""The three figures of the report (lidar.png, images.png, labels.png): sim and real overlaid as
-normalised histograms, one subplot per statistic. Fixed size, dpi and no software tag, so the
-same numbers give the same bytes."""
+"""The figures of the report: lidar.png, images.png, labels.png (sim and real overlaid as
+normalised histograms, one subplot per statistic) and frames.png (the first frames of each side,
+one above the other, to look at). Fixed size, dpi and no software tag, so the same data give the
+same bytes."""
 
 from __future__ import annotations
 
@@ -9,12 +10,14 @@ from pathlib import Path
 
 import numpy as np
 
+from kitti.dataset import KittiDataset
 from kitti.io import atomic_path
 
 from .compare import Comparison
 from .labels import CLASSES
 
 DPI = 90
+FRAMES_SHOWN = 2  # per side in frames.png
 COLOURS = {"sim": "tab:orange", "real": "tab:blue"}
 
 
@@ -120,6 +123,10 @@ def write_plots(comp: Comparison, out_dir: Path) -> list[str]:
             lambda ax: _hist(ax, comp, "labels.box_height_px", "2D box height (px)"),
             lambda ax: _hist(ax, comp, "labels.proj_gap_px", "2D vs projected 3D box (px)")],
     }
+    names = list(panels)
+    if comp.sim.frames and comp.real.frames:
+        _frames(comp, out_dir / "frames.png")
+        names.append("frames.png")
     for name, draw in panels.items():
         fig = Figure(figsize=(13, 7))
         for ax, fn in zip(fig.subplots(2, 3).ravel(), draw):
@@ -128,4 +135,23 @@ def write_plots(comp: Comparison, out_dir: Path) -> list[str]:
         fig.subplots_adjust(left=0.05, right=0.98, bottom=0.08, top=0.91, wspace=0.2, hspace=0.35)
         with atomic_path(out_dir / name) as tmp:
             fig.savefig(tmp, format="png", dpi=DPI, metadata={"Software": None})
-    return list(panels)
+    return names
+
+
+def _frames(comp: Comparison, path: Path) -> None:
+    """The first FRAMES_SHOWN frames read of each side, generated and real alternating."""
+    import cv2
+    from matplotlib.figure import Figure
+
+    shown = [(side, d, fid) for i in range(FRAMES_SHOWN)
+             for side, d in (("sim", comp.sim), ("real", comp.real)) if i < len(d.frames)
+             for fid in [d.frames[i]]]
+    fig = Figure(figsize=(12.42, 3.9 * len(shown)))
+    for ax, (side, d, fid) in zip(np.atleast_1d(fig.subplots(len(shown), 1)), shown):
+        img = cv2.imread(str(KittiDataset(d.root).image_path(fid)), cv2.IMREAD_COLOR)
+        ax.imshow(img[..., ::-1], interpolation="nearest")
+        ax.set_title(f"{side}: {d.root} frame {fid}", fontsize=9, color=COLOURS[side])
+        ax.set_axis_off()
+    fig.subplots_adjust(left=0.01, right=0.99, bottom=0.01, top=0.97, hspace=0.12)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=100, metadata={"Software": None})

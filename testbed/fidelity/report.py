@@ -127,15 +127,18 @@ def _group(comp: Comparison, group: str, title: str, folder: str) -> list[str]:
 
 
 def write_report(comp: Comparison, out_dir: str | Path) -> None:
-    """report.md, fidelity.json, lidar.png, images.png, labels.png in out_dir."""
+    """report.md, fidelity.json, lidar.png, images.png, labels.png, frames.png in out_dir."""
     from .plots import write_plots
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    write_plots(comp, out_dir)
+    figures = write_plots(comp, out_dir)
     atomic_write_text(out_dir / "fidelity.json",
                       json.dumps(to_json(comp), indent=1, allow_nan=False) + "\n")
     lines = _header(comp)
     for group, title, folder in GROUPS:
         lines += _group(comp, group, title, folder)
+        if group == "images" and "frames.png" in figures:
+            lines += ["The first frames of each side, generated and real alternating:", "",
+                      "![frames](frames.png)", ""]
     atomic_write_text(out_dir / "report.md", "\n".join(lines + [NOTES]))

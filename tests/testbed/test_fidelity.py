@@ -99,7 +99,7 @@ def test_sim_against_real_writes_every_number_and_the_same_bytes_twice(sim_vs_re
     write_report(sim_vs_real, tmp_path / "a")
     write_report(sim_vs_real, tmp_path / "b")
     names = sorted(p.name for p in (tmp_path / "a").iterdir())
-    assert names == ["fidelity.json", "images.png", "labels.png", "lidar.png", "report.md"]
+    assert names == ["fidelity.json", "frames.png", "images.png", "labels.png", "lidar.png", "report.md"]
     for name in names:
         assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes(), name
     doc = json.loads((tmp_path / "a/fidelity.json").read_text())
