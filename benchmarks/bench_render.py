@@ -35,19 +35,19 @@ def render_breakdown(spec, n: int) -> None:
     worlds = [sample_world(spec, spec.seed, i) for i in range(n)]
     sample_ms = 1000 * (time.perf_counter() - t0) / n
     r = renderer(worlds[0].rig.width, worlds[0].rig.height)
-    scene, _, flags = build_scene(worlds[0])  # warm-up: shaders compile on the first render
+    scene, _, flags, _ = build_scene(worlds[0])  # warm-up: shaders compile on the first render
     r.render(scene, flags=flags)
     t = {"build": [], "colour": [], "seg+depth": [], "shadows": [], "look": [], "labels": []}
     for w in worlds:
         t0 = time.perf_counter()
-        scene, seg, flags = build_scene(w)
+        scene, seg, flags, casters = build_scene(w)
         t1 = time.perf_counter()
         color, _ = r.render(scene, flags=flags)
         t2 = time.perf_counter()
         ids, depth = r.render(scene, flags=RenderFlags.SEG, seg_node_map=seg)
         t3 = time.perf_counter()
         lit = bool(flags & RenderFlags.RGBA)
-        rgb = shade(w, color, depth) if lit else color[..., :3]
+        rgb = shade(w, color, depth, casters) if lit else color[..., :3]
         t4 = time.perf_counter()
         apply_look(rgb, depth, w.rig.intrinsics(), w.weather, w.light, w.sensor,
                    factor_rng(0, 0, "look"), HEADROOM if lit else 1.0, w.camera)

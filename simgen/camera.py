@@ -15,7 +15,9 @@ step below is the physical one, with `simgen.world.CameraResponse` holding its s
 5. the colour filter array: each pixel keeps one channel (RGGB);
 6. noise: shot noise of the collected electrons (Poisson, approximated by a Gaussian of
    variance equal to the count) and read noise, at `full_well_e` electrons for the white level;
-7. demosaicing (OpenCV's bilinear Bayer interpolation) and the sRGB-like 1/2.2 gamma to 8 bits.
+7. demosaicing (OpenCV's bilinear Bayer interpolation) and the output curve to 8 bits,
+   signal ** (1 / gamma): 2.2 is sRGB-like; machine-vision cameras such as the Flea2 can also
+   put out the linear signal (gamma 1), which leaves shadows far darker.
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ import numpy as np
 
 from .world import CameraResponse
 
-GAMMA = 2.2
+GAMMA = 2.2  # the renderer's encoding of radiance (simgen.render), undone before exposure
 KEY = 0.18  # log-average luminance after exposure (Reinhard et al. 2002)
 LOG_FLOOR = 1e-4  # keeps black pixels out of the log average (Reinhard's delta)
 GAIN_LIMITS = (0.25, 8.0)  # an auto-exposure's range of gain and shutter, as factors
@@ -70,7 +72,7 @@ def expose(lin: np.ndarray, K: np.ndarray, cam: CameraResponse, rng: np.random.G
         img = cv2.cvtColor(raw16, cv2.COLOR_BayerBG2RGB).astype(np.float32) / 65535.0
     else:
         img = _noisy(img.astype(np.float32), cam, rng)
-    return np.round(np.clip(img, 0.0, 1.0) ** (1.0 / GAMMA) * 255.0).astype(np.uint8)
+    return np.round(np.clip(img, 0.0, 1.0) ** (1.0 / cam.gamma) * 255.0).astype(np.uint8)
 
 
 def _noisy(signal: np.ndarray, cam: CameraResponse, rng: np.random.Generator) -> np.ndarray:

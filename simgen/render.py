@@ -35,7 +35,7 @@ from pyrender.constants import RenderFlags  # noqa: E402
 from . import textures  # noqa: E402
 from .factors import factor_rng  # noqa: E402
 from .meshes import EMISSIVE  # noqa: E402
-from .shadows import sun_shadow  # noqa: E402
+from .shadows import Occluders, sun_shadow  # noqa: E402
 from .world import Part, World  # noqa: E402
 
 ZNEAR, ZFAR = 0.3, 400.0
@@ -232,11 +232,12 @@ def _thermal(part: Part, moving: bool) -> tuple[float, float, float]:
     return (t, t, t)
 
 
-def _actor_meshes(bodies: list[tuple[list[Part], np.ndarray, bool]], shader: _Shader) -> list[pyrender.Mesh]:
+def _actor_meshes(bodies: list[tuple[list[Part], np.ndarray, bool]],
+                  shader: _Shader) -> tuple[list[pyrender.Mesh], Occluders]:
     """One flat-shaded primitive per actor (parts in the actor frame), all actors shaded in one
-    vectorised pass in the world frame."""
+    vectorised pass in the world frame; and their triangles (world frame) as shadow casters."""
     if not bodies:
-        return []
+        return [], Occluders(np.zeros((0, 3, 3), np.float32), np.zeros(0, np.float32))
     geo = [_triangles(parts) for parts, _, _ in bodies]
     world_tris = np.concatenate([t @ pose[:3, :3].T + pose[:3, 3] for (t, _), (_, pose, _) in zip(geo, bodies)])
     world_n = np.concatenate([n @ pose[:3, :3].T for (_, n), (_, pose, _) in zip(geo, bodies)])
@@ -246,8 +247,8 @@ def _actor_meshes(bodies: list[tuple[list[Part], np.ndarray, bool]], shader: _Sh
     else:
         rgba = shader.colors(parts, world_tris, world_n, False)
     ends = np.cumsum([len(t) for t, _ in geo])[:-1]
-    return [pyrender.Mesh([_primitive(t, n, c, _PLAIN)])
-            for (t, n), c in zip(geo, np.split(rgba, ends))]
+    return ([pyrender.Mesh([_primitive(t, n, c, _PLAIN)]) for (t, n), c in zip(geo, np.split(rgba, ends))],
+            Occluders.of_parts(parts, world_tris))
 
 
 def _lamp_mesh(part: Part, material) -> pyrender.Mesh:
@@ -283,15 +284,17 @@ def _planar_uv(tris: np.ndarray, normals: np.ndarray, tile: tuple[float, float],
     return np.stack([u / tile[0], v / tile[1]], axis=2) + shift
 
 
-def _static_mesh(parts: list[Part], shader: _Shader, world: World) -> pyrender.Mesh:
-    """The static world, one primitive per texture tile (and one for untextured faces)."""
+def _static_mesh(parts: list[Part], shader: _Shader, world: World) -> tuple[pyrender.Mesh, Occluders]:
+    """The static world, one primitive per texture tile (and one for untextured faces), and its
+    triangles as shadow casters."""
     rng = factor_rng(world.seed, world.frame_index, "appearance")
     look = world.appearance
     gain = np.exp(rng.normal(0.0, look.colour_jitter, (len(parts), 3)))
     tris, normals = _triangles(parts)
     rgba = shader.colors(parts, tris, normals, False, gain)
+    casters = Occluders.of_parts(parts, tris)
     if shader.mode != "lit" or not look.textures:
-        return pyrender.Mesh([_primitive(tris, normals, rgba, _PLAIN)])
+        return pyrender.Mesh([_primitive(tris, normals, rgba, _PLAIN)]), casters
     owner = np.repeat(np.arange(len(parts)), [len(p.mesh.faces) for p in parts])
     prims, plain = [], np.ones(len(tris), bool)
     for i, part in enumerate(parts):
@@ -318,7 +321,7 @@ def _static_mesh(parts: list[Part], shader: _Shader, world: World) -> pyrender.M
             plain &= ~sel
     if plain.any():
         prims.append(_primitive(tris[plain], normals[plain], rgba[plain], _PLAIN))
-    return pyrender.Mesh(prims)
+    return pyrender.Mesh(prims), casters
 
 
 _DOME_RADIUS = 350.0  # m, inside ZFAR
@@ -366,9 +369,9 @@ def _seg_code(actor_id: int) -> tuple[int, int, int]:
     return (actor_id % 256, actor_id // 256, 0)
 
 
-def build_scene(world: World) -> tuple[pyrender.Scene, dict, int]:
-    """The pyrender scene of a world at t = 0, its segmentation map (node -> colour) and the
-    render flags of its colour pass."""
+def build_scene(world: World) -> tuple[pyrender.Scene, dict, int, Occluders]:
+    """The pyrender scene of a world at t = 0, its segmentation map (node -> colour), the render
+    flags of its colour pass and its triangles as shadow casters (world frame)."""
     light = world.light
     rig = world.rig
     cam2_from_world = rig.cam2_from_world()
@@ -377,8 +380,10 @@ def build_scene(world: World) -> tuple[pyrender.Scene, dict, int]:
     scene = pyrender.Scene(bg_color=(*((0.02,) * 3 if shader.mode == "thermal" else SKY[light.time]), 1.0),
                            ambient_light=(AMBIENT[light.time],) * 3)
     seg: dict = {}
+    casters = Occluders(np.zeros((0, 3, 3), np.float32), np.zeros(0, np.float32))
     if world.static:
-        seg[scene.add(_static_mesh(world.static, shader, world))] = (0, 0, 0)
+        mesh, casters = _static_mesh(world.static, shader, world)
+        seg[scene.add(mesh)] = (0, 0, 0)
     if shader.mode == "lit":
         scene.add(_sky_dome(world, shader.headroom), pose=np.r_[np.c_[np.eye(3), eye], [[0, 0, 0, 1]]])
     lamps: list[tuple[Part, np.ndarray, tuple]] = []
@@ -390,7 +395,8 @@ def build_scene(world: World) -> tuple[pyrender.Scene, dict, int]:
                        actor.pose, moving))
         lamps += [(p, actor.pose, _seg_code(actor.id)) for p in actor.parts
                   if lit and p.material.name in EMISSIVE]
-    for actor, mesh in zip(world.actors, _actor_meshes(bodies, shader)):
+    meshes, actor_casters = _actor_meshes(bodies, shader)
+    for actor, mesh in zip(world.actors, meshes):
         seg[scene.add(mesh, pose=actor.pose)] = _seg_code(actor.id)
     for part, pose, code in lamps:
         mat = pyrender.MetallicRoughnessMaterial(baseColorFactor=(0.0, 0.0, 0.0, 1.0),
@@ -415,7 +421,7 @@ def build_scene(world: World) -> tuple[pyrender.Scene, dict, int]:
                                          innerConeAngle=0.15, outerConeAngle=0.45), pose=p)
     flags = {"pbr": RenderFlags.NONE, "thermal": RenderFlags.FLAT,
              "lit": RenderFlags.FLAT | RenderFlags.RGBA}[shader.mode]
-    return scene, seg, flags
+    return scene, seg, flags, Occluders.join(casters, actor_casters)
 
 
 def _shade_tint(time: str) -> np.ndarray:
@@ -425,14 +431,14 @@ def _shade_tint(time: str) -> np.ndarray:
     return (sky / (sky @ np.array([0.2126, 0.7152, 0.0722]))) ** (1 / 2.2)
 
 
-def shade(world: World, color: np.ndarray, depth: np.ndarray) -> np.ndarray:
+def shade(world: World, color: np.ndarray, depth: np.ndarray, casters: Occluders) -> np.ndarray:
     """The lit colour pass (RGBA, alpha = the light left in shadow) with the sun's shadows
     applied, as (H, W, 3) uint8."""
     rgb = color[..., :3]
     if not world.appearance.shadows:
         return rgb
     rig = world.rig
-    depth_of_shadow = sun_shadow(world, depth, rig.intrinsics(), rig.cam2_from_world(),
+    depth_of_shadow = sun_shadow(casters, depth, rig.intrinsics(), rig.cam2_from_world(),
                                  _to_sun(world.light), color[..., 3] < 250)
     rest = color[..., 3:4].astype(np.float32) / 255.0 * _shade_tint(world.light.time)
     factor = 1.0 - depth_of_shadow[..., None] * (1.0 - rest)
@@ -442,13 +448,13 @@ def shade(world: World, color: np.ndarray, depth: np.ndarray) -> np.ndarray:
 def render(world: World) -> RenderOutput:
     rig = world.rig
     r = renderer(rig.width, rig.height)
-    scene, seg, flags = build_scene(world)
+    scene, seg, flags, casters = build_scene(world)
     color, _ = r.render(scene, flags=flags)
     # Depth from the single-sample pass: the multisampled pass's depth is that of sample 0, a
     # third of a pixel off the pixel centre.
     ids, depth = r.render(scene, flags=RenderFlags.SEG, seg_node_map=seg)
     instance = ids[..., 0].astype(np.uint16) + 256 * ids[..., 1].astype(np.uint16)
     lit = bool(flags & RenderFlags.RGBA)
-    rgb = shade(world, color, depth) if lit else color[..., :3]
+    rgb = shade(world, color, depth, casters) if lit else color[..., :3]
     return RenderOutput(np.ascontiguousarray(rgb), depth.astype(np.float32), instance,
                         HEADROOM if lit else 1.0)

@@ -14,41 +14,48 @@ porous part is (1 - porosity ** 2) deep.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import cv2
 import numpy as np
 from embreex.mesh_construction import TriangleMesh
 from embreex.rtcore_scene import EmbreeScene
 
-from .world import World
+from .world import Part, World
 
 STEP = 3  # pixels between shadow rays
 SOFTEN = 0.8  # ray-grid cells: a Gaussian that hides the grid's stair steps along shadow edges
 T_NEAR = 0.05  # m: a ray starts this far from its surface point (depth precision, flat facets)
 
 
-def _arr(a) -> np.ndarray:
-    """A plain ndarray view of a trimesh TrackedArray (skips its per-access hashing)."""
-    return np.asarray(a).view(np.ndarray)
+@dataclass
+class Occluders:
+    """World-frame triangles that can cast a shadow, and each one's shadow depth."""
+
+    tris: np.ndarray  # (F, 3, 3) float32
+    depth: np.ndarray  # (F,) float32, 1 - porosity ** 2
+
+    @staticmethod
+    def of_parts(parts: list[Part], tris: np.ndarray) -> "Occluders":
+        """The parts' triangles (already in the world frame, in part order)."""
+        depth = np.repeat([1.0 - p.material.porosity ** 2 for p in parts],
+                          [len(p.mesh.faces) for p in parts]).astype(np.float32)
+        return Occluders(np.asarray(tris, np.float32).reshape(-1, 3, 3), depth)
+
+    @staticmethod
+    def of_world(world: World) -> "Occluders":
+        """Every part of the world at t = 0."""
+        placed = [(p, None) for p in world.static] + [(p, a.pose) for a in world.actors for p in a.parts]
+        tris = [np.asarray(p.mesh.vertices)[np.asarray(p.mesh.faces)] @ (np.eye(3) if T is None else T[:3, :3].T)
+                + (0.0 if T is None else T[:3, 3]) for p, T in placed]
+        return Occluders.of_parts([p for p, _ in placed], np.concatenate(tris))
+
+    @staticmethod
+    def join(a: "Occluders", b: "Occluders") -> "Occluders":
+        return Occluders(np.concatenate([a.tris, b.tris]), np.concatenate([a.depth, b.depth]))
 
 
-def _scene(world: World) -> tuple[EmbreeScene, np.ndarray]:
-    """An Embree scene of every triangle of the world at t = 0 and each triangle's shadow depth."""
-    verts, faces, depth, n = [], [], [], 0
-    for part, pose in [(p, None) for p in world.static] + [(p, a.pose) for a in world.actors for p in a.parts]:
-        v = _arr(part.mesh.vertices)
-        if pose is not None:
-            v = v @ pose[:3, :3].T + pose[:3, 3]
-        f = _arr(part.mesh.faces)
-        verts.append(v)
-        faces.append(f + n)
-        n += len(v)
-        depth.append(np.full(len(f), 1.0 - part.material.porosity ** 2, np.float32))
-    scene = EmbreeScene()
-    TriangleMesh(scene, np.concatenate(verts).astype(np.float32), np.concatenate(faces).astype(np.int32))
-    return scene, np.concatenate(depth)
-
-
-def sun_shadow(world: World, depth: np.ndarray, K: np.ndarray, cam2_from_world: np.ndarray,
+def sun_shadow(occluders: Occluders, depth: np.ndarray, K: np.ndarray, cam2_from_world: np.ndarray,
                to_sun: np.ndarray, sunlit: np.ndarray | None = None) -> np.ndarray:
     """(H, W) float32 shadow depth in [0, 1] per pixel (0 = in sun), 0 where depth is 0 (sky).
     `sunlit` (H, W) bool, if given, limits the rays to pixels whose surface faces the sun (a
@@ -66,10 +73,11 @@ def sun_shadow(world: World, depth: np.ndarray, K: np.ndarray, cam2_from_world: 
     cam = np.stack([(u[need] - K[0, 2]) * zc / K[0, 0], (v[need] - K[1, 2]) * zc / K[1, 1], zc,
                     np.ones_like(zc)])
     points = (np.linalg.inv(cam2_from_world) @ cam)[:3].T
-    scene, strength = _scene(world)
+    scene = EmbreeScene()
+    TriangleMesh(scene, occluders.tris)
     origins = (points + T_NEAR * to_sun).astype(np.float32)
     dirs = np.broadcast_to(to_sun.astype(np.float32), origins.shape).copy()
     prim = scene.run(origins, dirs)
-    small[need] = np.where(prim >= 0, strength[np.maximum(prim, 0)], 0.0)
+    small[need] = np.where(prim >= 0, occluders.depth[np.maximum(prim, 0)], 0.0)
     small = cv2.GaussianBlur(small, (0, 0), SOFTEN)
     return cv2.resize(small, (W, H), interpolation=cv2.INTER_LINEAR) * (depth > 0)

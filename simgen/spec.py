@@ -170,6 +170,7 @@ class CameraSpec(Strict):
     full_well_e: factor(float, 0.0, 1e6) = 10000.0  # electrons at the white level; 0 = no noise
     read_noise_e: factor(float, 0.0, 1000.0) = 10.0
     bayer: bool = True  # RGGB colour filter array and demosaicing
+    gamma: factor(float, 1.0, 3.0) = 2.2  # output curve (sRGB-like 2.2; 1 = linear)
 
 
 class WeatherSpec(Strict):

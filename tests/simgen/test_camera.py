@@ -14,17 +14,17 @@ CLEAN = CameraResponse(white_balance_sd=0.0, corner_illumination=1.0, blur_sigma
                        full_well_e=0.0, bayer=False)
 
 
-def _linear(img8: np.ndarray) -> np.ndarray:
-    return (img8.astype(np.float64) / 255.0) ** GAMMA
+def _linear(img8: np.ndarray, gamma: float = GAMMA) -> np.ndarray:
+    return (img8.astype(np.float64) / 255.0) ** gamma
 
 
-@pytest.mark.parametrize("ev", [-1.0, 0.0, 0.5])
-def test_auto_exposure_brings_the_log_average_luminance_to_the_key(ev):
+@pytest.mark.parametrize("ev, gamma", [(-1.0, 2.2), (0.0, 2.2), (0.5, 2.2), (0.0, 1.0)])
+def test_auto_exposure_brings_the_log_average_luminance_to_the_key(ev, gamma):
     rng = np.random.default_rng(0)
     lin = rng.uniform(0.02, 0.3, (120, 160, 3))
-    out = expose(lin, K, CameraResponse(**{**CLEAN.__dict__, "exposure_ev": ev}), rng)
+    out = expose(lin, K, CameraResponse(**{**CLEAN.__dict__, "exposure_ev": ev, "gamma": gamma}), rng)
     w = np.array([0.2126, 0.7152, 0.0722])
-    lum = _linear(out) @ w
+    lum = _linear(out, gamma) @ w
     # The meter reads every 4th pixel of every 4th row.
     gain = KEY / np.exp(np.log(LOG_FLOOR + lin[::4, ::4] @ w).mean()) * 2.0 ** ev
     # 8-bit quantisation of a gamma-encoded value moves the linear mean by well under 1 %.
