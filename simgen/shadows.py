@@ -36,14 +36,14 @@ class Occluders:
     depth: np.ndarray  # (F,) float32, 1 - porosity ** 2
 
     @staticmethod
-    def of_parts(parts: list[Part], tris: np.ndarray) -> "Occluders":
+    def of_parts(parts: list[Part], tris: np.ndarray) -> Occluders:
         """The parts' triangles (already in the world frame, in part order)."""
         depth = np.repeat([1.0 - p.material.porosity ** 2 for p in parts],
                           [len(p.mesh.faces) for p in parts]).astype(np.float32)
         return Occluders(np.asarray(tris, np.float32).reshape(-1, 3, 3), depth)
 
     @staticmethod
-    def of_world(world: World) -> "Occluders":
+    def of_world(world: World) -> Occluders:
         """Every part of the world at t = 0."""
         placed = [(p, None) for p in world.static] + [(p, a.pose) for a in world.actors for p in a.parts]
         tris = [np.asarray(p.mesh.vertices)[np.asarray(p.mesh.faces)] @ (np.eye(3) if T is None else T[:3, :3].T)
@@ -51,7 +51,7 @@ class Occluders:
         return Occluders.of_parts([p for p, _ in placed], np.concatenate(tris))
 
     @staticmethod
-    def join(a: "Occluders", b: "Occluders") -> "Occluders":
+    def join(a: Occluders, b: Occluders) -> Occluders:
         return Occluders(np.concatenate([a.tris, b.tris]), np.concatenate([a.depth, b.depth]))
 
 

@@ -15,9 +15,8 @@ the construction standards or common practice named beside them.
 
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache
 
-import cv2
 import numpy as np
 
 SIZE = 512  # texels per tile side
@@ -207,7 +206,7 @@ OF_MATERIAL = {"asphalt": "asphalt", "marking": "marking", "sidewalk": "paving",
                "bark": "bark", "fence": "planks", "pole": "metal"}
 
 
-@lru_cache(maxsize=None)
+@cache
 def tile(kind: str, variant: int) -> np.ndarray:
     """(SIZE, SIZE, 3) uint8 multipliers / MAX_GAIN of one texture variant, normalised to a mean
     multiplier of 1 per channel."""
