@@ -33,8 +33,11 @@ LOG_FLOOR = 1e-4  # keeps black pixels out of the log average (Reinhard's delta)
 GAIN_LIMITS = (0.25, 8.0)  # an auto-exposure's range of gain and shutter, as factors
 
 
+LUMA = np.array([0.2126, 0.7152, 0.0722])  # Rec. 709 luminance of linear RGB
+
+
 def _luminance(lin: np.ndarray) -> np.ndarray:
-    return lin @ np.array([0.2126, 0.7152, 0.0722])
+    return lin @ LUMA
 
 
 def _vignetting(H: int, W: int, K: np.ndarray, corner: float) -> np.ndarray:

@@ -33,6 +33,7 @@ import pyrender  # noqa: E402
 from pyrender.constants import RenderFlags  # noqa: E402
 
 from . import textures  # noqa: E402
+from .camera import LUMA  # noqa: E402
 from .factors import factor_rng  # noqa: E402
 from .meshes import EMISSIVE  # noqa: E402
 from .shadows import Occluders, sun_shadow  # noqa: E402
@@ -428,7 +429,7 @@ def _shade_tint(time: str) -> np.ndarray:
     """Gamma-encoded colour of skylight against sunlight plus skylight, luminance kept: shadows
     are lit by the sky alone, which is bluer than the sun."""
     sky = np.asarray(SKY[time]) / np.asarray(SUN[time])
-    return (sky / (sky @ np.array([0.2126, 0.7152, 0.0722]))) ** (1 / 2.2)
+    return (sky / (sky @ LUMA)) ** (1 / 2.2)
 
 
 def shade(world: World, color: np.ndarray, depth: np.ndarray, casters: Occluders) -> np.ndarray:

@@ -21,7 +21,7 @@ import numpy as np
 from embreex.mesh_construction import TriangleMesh
 from embreex.rtcore_scene import EmbreeScene
 
-from .world import Part, World
+from .world import Part
 
 STEP = 3  # pixels between shadow rays
 SOFTEN = 0.8  # ray-grid cells: a Gaussian that hides the grid's stair steps along shadow edges
@@ -41,14 +41,6 @@ class Occluders:
         depth = np.repeat([1.0 - p.material.porosity ** 2 for p in parts],
                           [len(p.mesh.faces) for p in parts]).astype(np.float32)
         return Occluders(np.asarray(tris, np.float32).reshape(-1, 3, 3), depth)
-
-    @staticmethod
-    def of_world(world: World) -> Occluders:
-        """Every part of the world at t = 0."""
-        placed = [(p, None) for p in world.static] + [(p, a.pose) for a in world.actors for p in a.parts]
-        tris = [np.asarray(p.mesh.vertices)[np.asarray(p.mesh.faces)] @ (np.eye(3) if T is None else T[:3, :3].T)
-                + (0.0 if T is None else T[:3, 3]) for p, T in placed]
-        return Occluders.of_parts([p for p, _ in placed], np.concatenate(tris))
 
     @staticmethod
     def join(a: Occluders, b: Occluders) -> Occluders:

@@ -27,6 +27,18 @@ class Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True, validate_default=True)
 
 
+def _weights(v: dict[str, float], allowed: tuple[str, ...], what: str) -> dict[str, float]:
+    """A mix of named weights: known names, none negative, not all zero."""
+    for k, w in v.items():
+        if k not in allowed:
+            raise ValueError(f"unknown {what} {k!r} (allowed: {list(allowed)})")
+        if w < 0:
+            raise ValueError(f"weight of {k} is negative")
+    if v and sum(v.values()) <= 0:
+        raise ValueError("the weights sum to zero")
+    return v
+
+
 class SplitSpec(Strict):
     train_fraction: float = Field(0.5, gt=0.0, lt=1.0)
 
@@ -65,14 +77,7 @@ class TrafficSpec(Strict):
     @field_validator("mix")
     @classmethod
     def _mix(cls, v: dict[str, float]) -> dict[str, float]:
-        for k, w in v.items():
-            if k not in VEHICLE_CLASSES:
-                raise ValueError(f"unknown vehicle class {k!r} (allowed: {list(VEHICLE_CLASSES)})")
-            if w < 0:
-                raise ValueError(f"weight of {k} is negative")
-        if v and sum(v.values()) <= 0:
-            raise ValueError("the weights sum to zero")
-        return v
+        return _weights(v, VEHICLE_CLASSES, "vehicle class")
 
 
 class ClutterSpec(Strict):
@@ -101,14 +106,7 @@ class ClutterSpec(Strict):
     @field_validator("frontage")
     @classmethod
     def _frontage(cls, v: dict[str, float]) -> dict[str, float]:
-        for k, w in v.items():
-            if k not in FRONTAGE_KINDS:
-                raise ValueError(f"unknown lot kind {k!r} (allowed: {list(FRONTAGE_KINDS)})")
-            if w < 0:
-                raise ValueError(f"weight of {k} is negative")
-        if v and sum(v.values()) <= 0:
-            raise ValueError("the weights sum to zero")
-        return v
+        return _weights(v, FRONTAGE_KINDS, "lot kind")
 
 
 class OnboardRig(Strict):
