@@ -1,7 +1,8 @@
 """Write a KITTI-layout dataset from a scene spec: one independent job per frame.
 
-Per frame, under <out>/training/: image_2 (PNG), label_2, calib, planes (the exact road plane in
-rect camera coordinates), velodyne (+ the LiDAR's side file) when a LiDAR is set, and side data
+Per frame, under <out>/training/: image_2 (PNG), label_2, calib, planes (the road plane in rect
+camera coordinates: exact on a flat road, else fitted to the road 0-40 m ahead,
+`simgen.road.RoadLayout.fitted_plane`), velodyne (+ the LiDAR's side file) when a LiDAR is set, and side data
 KITTI tools ignore: depth_2 (16-bit PNG, camera-2 z in metres x 256, 0 = no surface or beyond
 255.99 m, KITTI's depth-benchmark encoding), instance_2 (16-bit PNG, actor id, 0 = background)
 and meta/NNNNNN.json (simgen.meta). Every file is written atomically and meta last, so a frame
@@ -33,6 +34,7 @@ from .labels import derive
 from .look import apply_look
 from .render import render
 from .rescan import lidar_seed
+from .road import RoadLayout
 from .sample import sample_world
 from .spec import SceneSpec, spec_to_dict
 
@@ -113,7 +115,8 @@ def make_frame(job: Job) -> str:
     atomic_write_bytes(training / "depth_2" / f"{fid}.png", _png(encode_depth(out.depth)))
     atomic_write_bytes(training / "instance_2" / f"{fid}.png", _png(out.instance))
     write_calib(training / "calib" / f"{fid}.txt", rig.calib)
-    write_plane(training / "planes" / f"{fid}.txt", rig.road_plane_rect())
+    road = RoadLayout(**world.scenery["road"])
+    write_plane(training / "planes" / f"{fid}.txt", rig.road_plane_rect(road.fitted_plane()))
     write_label(training / "label_2" / f"{fid}.txt", objects)
     meta = meta_io.world_to_meta(world, spec_to_dict(job.spec), truths, counts, lidar_info)
     atomic_write_text(meta_path, dump_json(meta))

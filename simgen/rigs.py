@@ -56,9 +56,11 @@ class CameraRig:
     def intrinsics(self) -> np.ndarray:
         return self.calib.P2[:, :3]
 
-    def road_plane_rect(self) -> np.ndarray:
-        """The road plane z = 0 as (a, b, c, d) in rect camera coords, unit normal pointing up."""
-        plane_world = np.array([0.0, 0.0, 1.0, 0.0])
+    def road_plane_rect(self, plane_world: np.ndarray | None = None) -> np.ndarray:
+        """A world plane (a, b, c, d) (default: the flat road z = 0) in rect camera coords, unit
+        normal pointing up."""
+        if plane_world is None:
+            plane_world = np.array([0.0, 0.0, 1.0, 0.0])
         rect_from_world = self.calib.velo_to_rect @ np.linalg.inv(self.reference_pose)
         p = np.linalg.inv(rect_from_world).T @ plane_world
         return p / np.linalg.norm(p[:3])

@@ -6,6 +6,12 @@ circles, so every lane, curb and sidewalk edge is exact. Right-hand traffic: the
 lanes lie right of the divider, the oncoming lanes left of it; a parking strip lines each curb
 when the spec parks cars. An intersection is a straight road crossed at s = cross_s by a
 perpendicular street (world x = cross_s) with lanes of the same width.
+
+The road need not be flat: a `VerticalProfile` gives its height z(s) along the centre line, the
+same across it, so the cross street is level along its length. The world's z axis stays the
+vertical and the ego's stretch of road is level (the sensors ride on the ego vehicle, so only the
+change of grade from the ego's own shows in its camera and LiDAR); the road then bends up or down
+ahead and behind it on parabolic vertical curves, as roads are designed.
 """
 
 from __future__ import annotations
@@ -15,6 +21,40 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 PARKING_WIDTH = 2.3
+
+
+@dataclass(frozen=True)
+class VerticalProfile:
+    """The road's height along its centre line, relative to the level road under the ego.
+
+    On each side of the ego (ahead: s > 0, behind: s < 0) the road stays level for `start` metres,
+    then its grade changes at a constant rate on a parabolic vertical curve until it reaches that
+    side's grade, and keeps it. A curve's length follows design practice: L = K x |grade change in
+    percent|, K the metres of road per 1 % change (AASHTO's Green Book sets K by design speed; its
+    minimum at 50 km/h is 7 m on a crest, 13 m in a sag).
+    """
+
+    grade_ahead: float  # rise per metre reached ahead (negative: the road falls away)
+    grade_behind: float  # rise per metre reached behind, going backwards from the ego
+    k: float  # metres per percent of grade change
+    start: float  # metres of level road each side of the ego before the curve begins
+
+    def _side(self, u: np.ndarray, grade: float) -> tuple[np.ndarray, np.ndarray]:
+        """Height and slope du at distances u >= 0 beyond the curve's start, one side."""
+        length = max(self.k * abs(grade) * 100.0, 1e-9)
+        u = np.maximum(u, 0.0)
+        on = u < length
+        z = np.where(on, grade * u * u / (2.0 * length), grade * (u - length / 2.0))
+        g = np.where(on, grade * u / length, grade)
+        return z, g
+
+    def height_and_grade(self, s) -> tuple[np.ndarray, np.ndarray]:
+        """z(s) and dz/ds, broadcasting."""
+        s = np.asarray(s, dtype=float)
+        za, ga = self._side(s - self.start, self.grade_ahead)
+        zb, gb = self._side(-s - self.start, self.grade_behind)
+        ahead = s >= 0
+        return np.where(ahead, za, zb), np.where(ahead, ga, -gb)
 
 
 @dataclass(frozen=True)
@@ -30,9 +70,18 @@ class RoadLayout:
     s_max: float
     cross_s: float | None = None  # s of a perpendicular cross street's centre line (straight roads)
     cross_lanes: int = 0  # per direction on the cross street
+    profile: VerticalProfile | None = None  # None: the whole world is flat at z = 0
+
+    def __post_init__(self):
+        if isinstance(self.profile, dict):  # rebuilt from its to_dict() form (meta/)
+            object.__setattr__(self, "profile", VerticalProfile(**self.profile))
 
     def to_dict(self) -> dict:
-        return asdict(self)
+        """Plain values; a flat road's has no `profile` key, as before profiles existed."""
+        out = asdict(self)
+        if self.profile is None:
+            del out["profile"]
+        return out
 
     # Lateral positions (d) of the road's lines, left of the ego-lane centre.
     @property
@@ -82,6 +131,49 @@ class RoadLayout:
         else:
             cx, cy = np.sin(psi) / k, (1.0 - np.cos(psi)) / k
         return np.stack([cx - d * np.sin(psi), cy + d * np.cos(psi)], axis=-1)
+
+    def s_of(self, x, y) -> np.ndarray:
+        """Arc length s of the centre-line point nearest to world (x, y), broadcasting: on a
+        circle it is the point on the same radius, s = atan2(k x, 1 - k y) / k."""
+        x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+        k = self.curvature
+        if k == 0.0:
+            return x + 0.0 * y
+        return np.arctan2(k * x, 1.0 - k * y) / k
+
+    def height(self, x, y) -> np.ndarray:
+        """Road surface height z at world (x, y) (0 on a flat road), broadcasting."""
+        if self.profile is None:
+            return np.zeros(np.broadcast(np.asarray(x), np.asarray(y)).shape)
+        return self.profile.height_and_grade(self.s_of(x, y))[0]
+
+    def surface_normal(self, x: float, y: float) -> np.ndarray:
+        """Unit upward normal of the road surface z = height(x, y) at one point."""
+        if self.profile is None:
+            return np.array([0.0, 0.0, 1.0])
+        g = float(self.profile.height_and_grade(self.s_of(x, y))[1])
+        k = self.curvature
+        a, b = k * x, 1.0 - k * y  # ds/dx, ds/dy of s = atan2(a, b) / k
+        r2 = a * a + b * b
+        gx, gy = g * b / r2, g * a / r2
+        n = np.array([-gx, -gy, 1.0])
+        return n / np.linalg.norm(n)
+
+    def fitted_plane(self, s0: float = 0.0, s1: float = 40.0, step: float = 1.0) -> np.ndarray:
+        """The least-squares plane (a, b, c, d), a x + b y + c z + d = 0 with unit upward normal,
+        through the carriageway between s0 and s1: the one road plane per frame that KITTI's
+        planes/ files hold, fitted where the camera sees most of its labelled road users."""
+        if self.profile is None:
+            return np.array([0.0, 0.0, 1.0, 0.0])
+        s = np.arange(s0, s1 + step / 2, step)
+        d = np.linspace(self.right_curb, self.left_curb, 5)
+        S, D = np.meshgrid(s, d)
+        xy = self.xy(S.ravel(), D.ravel())
+        z = self.height(xy[:, 0], xy[:, 1])
+        A = np.column_stack([xy, np.ones(len(xy))])
+        (gx, gy, z0), *_ = np.linalg.lstsq(A, z, rcond=None)
+        n = np.array([-gx, -gy, 1.0, -z0])
+        return n / np.linalg.norm(n[:3])
 
     def samples(self, s0: float, s1: float, step: float = 4.0) -> np.ndarray:
         """Arc-length samples for meshing: two suffice on a straight road."""

@@ -1,6 +1,7 @@
 """Sample a world from a spec, a seed and a frame index: deterministic, collision-free.
 
-Actors stand on the road (z = 0) or the sidewalk (z = curb height), face along their lane with a
+Actors stand on the road or the sidewalk (curb height above it; on a road with a vertical
+profile, both rise and fall with it: `simgen.relief`), face along their lane with a
 small spread, and never overlap each other, the ego vehicle or static obstacles (footprints
 tested as oriented rectangles with a safety margin; tree crowns only against actors tall enough
 to reach them). With `clutter.frontage`, cars also stand in car-park stalls (paved at curb
@@ -14,8 +15,9 @@ import shapely
 
 from .factors import factor_rng
 from .meshes import build_actor_parts, sample_recipe
+from .relief import drape_actor
 from .rigs import KITTI_LIDAR_HEIGHT, CameraRig, gantry_rig, onboard_rig, orbit_rig
-from .road import RoadLayout
+from .road import RoadLayout, VerticalProfile
 from .scenery import Frontage, Obstacle, build_scenery, plan_frontage
 from .spec import SceneSpec
 from .usermesh import user_recipe
@@ -99,7 +101,16 @@ def _road_layout(spec: SceneSpec, v: dict) -> RoadLayout:
         s_min=-spec.road.length_behind,
         s_max=max(spec.road.length_ahead, float(v["traffic.max_distance"]) + 20.0),
         cross_s=float(v["road.intersection_distance"]) if kind == "intersection" else None,
-        cross_lanes=int(v["road.cross_lanes_per_direction"]) if kind == "intersection" else 0)
+        cross_lanes=int(v["road.cross_lanes_per_direction"]) if kind == "intersection" else 0,
+        profile=_profile(v))
+
+
+def _profile(v: dict) -> VerticalProfile | None:
+    """The road's vertical profile, or None for a flat road (both grades 0)."""
+    ahead, behind = float(v["road.grade_ahead"]), float(v["road.grade_behind"])
+    if ahead == 0.0 and behind == 0.0:
+        return None
+    return VerticalProfile(ahead, behind, float(v["road.vertical_k"]), float(v["road.vertical_start"]))
 
 
 def _make_rig(spec: SceneSpec, v: dict, road: RoadLayout, actors: list[Actor]) -> CameraRig:
@@ -287,6 +298,8 @@ def _place_actors(spec: SceneSpec, v: dict, road: RoadLayout, obstacles: list[Ob
     traffic.pedestrians(float(v["traffic.pedestrians_per_100m"]))
     traffic.cyclists(float(v["traffic.cyclists_per_100m"]))
     traffic.car_parks(float(v["traffic.car_park_occupancy"]))
+    for actor in traffic.actors:  # planned on the flat road, then laid onto its profile
+        drape_actor(actor, road)
     return traffic.actors
 
 

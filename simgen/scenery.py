@@ -18,6 +18,7 @@ from .materials import (ASPHALT, BARK, CONCRETE, FACADE_REFLECTIVITY, FENCE, FOL
                         FOREST_FLOOR, MARKING, METAL, SAND, SIDEWALK, SIGN_BLUE, SIGN_RED, SIGN_WHITE,
                         SIGN_YELLOW, TRIM, VERGE, paint_material, signal_lens)
 from .meshes import box, extrude
+from .relief import drape_parts
 from .road import RoadLayout
 from .world import Material, Part
 
@@ -935,6 +936,9 @@ def _furniture(road: RoadLayout, clutter: dict, seed: int, out: _Meshes) -> None
 def build_scenery(params: dict) -> tuple[list[Part], list[Obstacle]]:
     """Static parts (world frame) and their footprints, from the scenery parameters.
 
+    Everything is planned on a flat road and then laid onto the road's vertical profile
+    (`simgen.relief`); the footprints stay in plan view, their bases relative to the road.
+
     `params["keep_clear"]` (optional): a list of (x, y) polygon vertices where no building, tree
     or pole may stand, e.g. the line of sight of an orbit camera to its target. With
     `clutter.frontage` the sides are lots and side streets (plan_frontage), else one closed row.
@@ -947,7 +951,8 @@ def build_scenery(params: dict) -> tuple[list[Part], list[Obstacle]]:
     if plan is not None:
         _build_frontage(road, plan, clutter, ground, int(params["seed"]), out)
         _furniture(road, clutter, int(params["seed"]), out)
-        return [Part(trimesh.util.concatenate(ms), mat) for mat, ms in out.by_mat.items()], out.obstacles
+        parts = [Part(trimesh.util.concatenate(ms), mat) for mat, ms in out.by_mat.items()]
+        return drape_parts(parts, road), out.obstacles
     rng = np.random.default_rng(params["seed"])
     _ground(road, ground, out)
     _markings(road, out)
@@ -964,4 +969,4 @@ def build_scenery(params: dict) -> tuple[list[Part], list[Obstacle]]:
             _poles(road, side, curb, clutter["pole_spacing"], rng, out)
     _furniture(road, clutter, int(params["seed"]), out)
     parts = [Part(trimesh.util.concatenate(ms), mat) for mat, ms in out.by_mat.items()]
-    return parts, out.obstacles
+    return drape_parts(parts, road), out.obstacles

@@ -57,6 +57,14 @@ class RoadSpec(Strict):
     curb_height: factor(float, 0.0, 0.3) = 0.15
     length_ahead: float = Field(160.0, ge=20.0, le=400.0)
     length_behind: float = Field(40.0, ge=0.0, le=200.0)
+    # The vertical profile (simgen.road.VerticalProfile): the grade reached ahead of and behind
+    # the ego, relative to the ego's own (rise per metre), on parabolic vertical curves of K metres
+    # per percent of grade change that begin `vertical_start` metres from the ego. All grades 0
+    # (the default): a flat world.
+    grade_ahead: factor(float, -0.15, 0.15) = 0.0
+    grade_behind: factor(float, -0.15, 0.15) = 0.0
+    vertical_k: factor(float, 2.0, 200.0) = 20.0
+    vertical_start: factor(float, 0.0, 200.0) = 0.0
 
 
 class TrafficSpec(Strict):

@@ -28,6 +28,9 @@ class RayTable:
     azimuth: np.ndarray  # (N,) float32 radians, atan2(y, x) of the direction
     ring: np.ndarray  # (N,) uint8
     columns: int
+    # (N, 3) float32 where each ray starts in the LiDAR frame (LidarSpec.source_offsets_m), or
+    # None when every beam starts at the origin
+    source: np.ndarray | None = None
 
 
 @lru_cache(maxsize=16)
@@ -44,6 +47,12 @@ def ray_table(spec: LidarSpec) -> RayTable:
     dirs = np.stack(np.broadcast_arrays(ce * np.cos(az_col)[None], ce * np.sin(az_col)[None],
                                         se * np.ones(k)[None]), axis=-1).reshape(-1, 3)
     n = spec.beams
+    source = None
+    if spec.source_offsets_m:  # up, perpendicular to the beam: (-sin e cos a, -sin e sin a, cos e)
+        off = np.asarray(spec.source_offsets_m, dtype=float)[:, None]
+        source = np.stack(np.broadcast_arrays(-off * se * np.cos(az_col)[None],
+                                              -off * se * np.sin(az_col)[None], off * ce),
+                          axis=-1).reshape(-1, 3).astype(np.float32)
     table = RayTable(
         dirs=np.ascontiguousarray(dirs),
         dirs32=np.ascontiguousarray(dirs, dtype=np.float32),
@@ -53,6 +62,7 @@ def ray_table(spec: LidarSpec) -> RayTable:
         azimuth=np.tile(az_col, n).astype(np.float32),
         ring=np.repeat(np.arange(n, dtype=np.uint8), k),
         columns=k,
+        source=source,
     )
     return table  # shared by every scan with this spec: callers never write into it
 

@@ -85,9 +85,14 @@ def _origins(world: World, spec: LidarSpec, rays: RayTable, n: int) -> np.ndarra
     o0 = world.lidar_pose[:3, 3]
     if spec.motion and np.any(ego_v):
         col_t = rays.time[:rays.columns, None]
-        return np.tile((o0 + col_t * ego_v).astype(np.float32), (spec.beams, 1))
-    origins = np.empty((n, 3), np.float32)
-    origins[:] = o0
+        origins = np.tile((o0 + col_t * ego_v).astype(np.float32), (spec.beams, 1))
+    else:
+        origins = np.empty((n, 3), np.float32)
+        origins[:] = o0
+    if rays.source is not None:  # each beam starts at its laser's source, rotated with the rig
+        m = world.lidar_pose[:3, :3].astype(np.float32)
+        src = rays.source
+        origins += src[:, 0:1] * m[:, 0] + src[:, 1:2] * m[:, 1] + src[:, 2:3] * m[:, 2]
     return origins
 
 
@@ -186,11 +191,14 @@ def _read(spec: LidarSpec, rng: np.random.Generator, beta: float, idx: np.ndarra
     noisy = spec.noise_sigma > 0 or spec.bias_sigma > 0
     noise = rng.standard_normal(len(idx), dtype=f32) if noisy else np.zeros(0, f32)
     lasers = _laser_tables(spec)
-    return read_returns(idx, r, rho, need, v, _scatter_quantiles(spec.reading_sigma), ext, noise,
+    out = read_returns(idx, r, rho, need, v, _scatter_quantiles(spec.reading_sigma), ext, noise,
                         f32(spec.noise_sigma), lasers["bias"], lasers["gain"],
                         f32(spec.refl_floor_power), f32(spec.refl_floor), f32(1.0 / spec.refl_step),
                         f32(round(spec.refl_max / spec.refl_step)), rays.dirs4, rays.ring,
                         rays.azimuth, rays.time32)
+    if rays.source is not None:  # the return lies at the beam's source + range x direction
+        out[0][:, :3] += rays.source[idx]
+    return out
 
 
 @lru_cache(maxsize=8)

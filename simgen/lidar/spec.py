@@ -59,6 +59,10 @@ class LidarSpec:
     # across frames
     unit_seed: int = 0
     lasers: tuple[int, ...] = ()  # the unit's laser number per beam (empty: 0, 1, 2, ...)
+    # Per beam: how far the laser's beam runs above the sensor origin, perpendicular to the beam in
+    # its vertical plane (Velodyne's per-laser `vertOffsetCorrection`): a return lies at
+    # source + range x direction. Empty: every beam starts at the origin.
+    source_offsets_m: tuple[float, ...] = ()
     # Random loss of a detected return, mean over the lasers (a value kept from before: on the real
     # scans the loss cannot be told apart from the ego vehicle hiding the lowest lasers' sectors).
     dropout: float = 0.02
@@ -116,6 +120,8 @@ class LidarSpec:
             raise ValueError(f"LidarSpec {self.name!r}: at most 255 beams (ring is uint8)")
         if self.lasers and len(self.lasers) != len(el):
             raise ValueError(f"LidarSpec {self.name!r}: lasers needs one entry per beam")
+        if self.source_offsets_m and len(self.source_offsets_m) != len(el):
+            raise ValueError(f"LidarSpec {self.name!r}: source_offsets_m needs one entry per beam")
         if not 0 < self.azimuth_step_deg <= 10:
             raise ValueError(f"LidarSpec {self.name!r}: azimuth_step_deg must be in (0, 10]")
         if not 0 <= self.min_range < self.max_range:
@@ -221,11 +227,32 @@ def _subsample(elev: tuple[float, ...], beams: int, name: str) -> tuple[float, .
     return elev[:: n // beams]
 
 
+def _hdl64e_source_offsets(elevations: tuple[float, ...]) -> tuple[float, ...]:
+    """Where the HDL-64E's beams start: each block's lasers sit behind their own lens, so a
+    beam runs about 0.2 m (upper block) or 0.11 m (lower block) above the unit's origin, a little
+    more for the higher lasers of a block. A published HDL-64E S2.1 calibration (Velodyne's
+    db.xml of one unit, shipped with the ROS velodyne driver as `64e_s2.1-sztaki.yaml`) gives
+    vertOffsetCorrection 0.2097 m at +2.49 deg and 0.1955 m at -8.77 deg (upper block), 0.1215 m
+    at -11.52 deg and 0.1054 m at -24.85 deg (lower block): linear in the elevation within a
+    block, 1.2-1.3 mm per degree. Seen from the origin, the lowest laser's road returns at 4 m
+    then lie at about -23.7 deg rather than its -24.9 deg, as KITTI's do (their lowest ring's
+    median elevation is -23.2 to -23.6 deg)."""
+    upper = len(elevations) // 2
+    out = []
+    for i, e in enumerate(elevations):
+        if i < upper:
+            out.append(0.1955 + (0.2097 - 0.1955) * (e + 8.77) / (2.49 + 8.77))
+        else:
+            out.append(0.1054 + (0.1215 - 0.1054) * (e + 24.85) / (24.85 - 11.52))
+    return tuple(round(v, 5) for v in out)
+
+
 # The real sensors' elevation tables and datasheet figures (Velodyne HDL-64E S2, HDL-32E, VLP-32C,
 # VLP-16 manuals).
 _REAL = {
     "hdl64e": LidarSpec("hdl64e", HDL64E_ELEVATIONS, azimuth_step_deg=0.18, max_range=120.0,
-                        noise_sigma=0.015, bias_sigma=0.01, dark_range=50.0, bright_range=120.0),
+                        noise_sigma=0.015, bias_sigma=0.01, dark_range=50.0, bright_range=120.0,
+                        source_offsets_m=_hdl64e_source_offsets(HDL64E_ELEVATIONS)),
     "hdl32e": LidarSpec("hdl32e", HDL32E_ELEVATIONS, azimuth_step_deg=0.16, max_range=100.0,
                         noise_sigma=0.015, bias_sigma=0.01, dark_range=40.0, bright_range=100.0),
     "vlp32c": LidarSpec("vlp32c", VLP32C_ELEVATIONS, azimuth_step_deg=0.2, max_range=200.0,
@@ -263,8 +290,10 @@ def preset(name: str, beams: int | None = None, max_range: float | None = None,
                          f"or {PRESETS[-1]}")
     if beams is not None and beams != spec.beams:
         elev = _subsample(spec.elevations_deg, int(beams), spec.name)
+        step = spec.beams // len(elev)
         spec = replace(spec, name=f"{spec.name}-{beams}", elevations_deg=elev,
-                       lasers=tuple(range(0, spec.beams, spec.beams // len(elev))))
+                       lasers=tuple(range(0, spec.beams, step)),
+                       source_offsets_m=spec.source_offsets_m[::step])
     if max_range is not None:
         spec = replace(spec, max_range=float(max_range))
     return spec

@@ -86,6 +86,8 @@ def test_fixing_one_factor_leaves_the_others_draws_unchanged():
 
 
 def test_sampled_worlds_are_deterministic_and_collision_free():
+    from simgen.relief import TILTED
+    from simgen.road import RoadLayout
     from simgen.sample import EGO_FOOTPRINT, _footprint
 
     spec = load_spec(Path(__file__).resolve().parents[2] / "scenes/urban.yaml")
@@ -98,9 +100,14 @@ def test_sampled_worlds_are_deterministic_and_collision_free():
         assert not f.intersects(EGO_FOOTPRINT)
         for g in fps[i + 1:]:
             assert f.intersection(g).area == 0.0
-    for a in w1.actors:  # on the road or on the sidewalk, upright
-        assert a.pose[2, 3] in (0.0, w1.scenery["road"]["curb_height"])
-        assert a.pose[2, 2] == 1.0
+    road = RoadLayout(**w1.scenery["road"])
+    assert road.profile is not None  # urban.yaml's roads rise and fall
+    for a in w1.actors:  # on the road or on the sidewalk; vehicles tilted with the road
+        x, y, z = a.pose[:3, 3]
+        above = z - float(road.height(x, y))
+        assert min(abs(above), abs(above - road.curb_height)) < 1e-9
+        up = road.surface_normal(x, y) if a.cls in TILTED else [0.0, 0.0, 1.0]
+        np.testing.assert_allclose(a.pose[:3, 2], up, atol=1e-12)
     assert max(a.pose[0, 3] for a in w1.actors) > 100.0  # traffic out beyond 100 m
 
 

@@ -46,8 +46,19 @@ def _mesh_distance(mesh: trimesh.Trimesh, pts: np.ndarray) -> np.ndarray:
     return best
 
 
-def _ranges(s) -> np.ndarray:
-    return np.linalg.norm(s.points[:, :3].astype(np.float64), axis=1)
+def _source(spec, ring, azimuth) -> np.ndarray:
+    """Where each return's beam started (LidarSpec.source_offsets_m), by hand: its laser's offset
+    up and perpendicular to the beam, (-sin e cos a, -sin e sin a, cos e)."""
+    off = np.asarray(spec.source_offsets_m or [0.0] * spec.beams)[ring]
+    e = np.deg2rad(np.asarray(spec.elevations_deg))[ring]
+    a = np.asarray(azimuth, dtype=np.float64)
+    return off[:, None] * np.stack([-np.sin(e) * np.cos(a), -np.sin(e) * np.sin(a), np.cos(e)], 1)
+
+
+def _ranges(s, spec=None) -> np.ndarray:
+    """Range along each beam: from its source (the origin when no spec is given)."""
+    p = s.points[:, :3].astype(np.float64)
+    return np.linalg.norm(p if spec is None else p - _source(spec, s.ring, s.azimuth), axis=1)
 
 
 def test_wall_and_ground_ranges_are_analytic():
@@ -60,15 +71,16 @@ def test_wall_and_ground_ranges_are_analytic():
     el = np.deg2rad(np.asarray(spec.elevations_deg))[rays.ring]
     az = rays.azimuth.astype(np.float64)
     dx, dz = np.cos(el) * np.cos(az), np.sin(el)
+    src = _source(spec, rays.ring, az)  # each beam starts 0.10-0.21 m above the origin
     with np.errstate(divide="ignore"):
-        t_wall_all = np.where(dx > 0, d / dx, np.inf)
-        t_ground_all = np.where(dz < 0, -h / dz, np.inf)
+        t_wall_all = np.where(dx > 0, (d - src[:, 0]) / dx, np.inf)
+        t_ground_all = np.where(dz < 0, (-h - src[:, 2]) / dz, np.inf)
     expected_all = np.minimum(t_wall_all, t_ground_all)
     assert not np.any(np.abs(expected_all - spec.max_range) < 1e-3)  # no ray on the edge
     seen = expected_all <= spec.max_range  # every such ray returns, in ray order
     assert len(s) == seen.sum() and len(s) > 100_000
     assert np.array_equal(s.ring, rays.ring[seen]) and np.array_equal(s.azimuth, rays.azimuth[seen])
-    r = _ranges(s)
+    r = _ranges(s, spec)
     expected, t_wall, t_ground = expected_all[seen], t_wall_all[seen], t_ground_all[seen]
     np.testing.assert_allclose(r, expected, atol=1e-4, rtol=0)
     on_wall = t_wall < t_ground
@@ -79,16 +91,19 @@ def test_wall_and_ground_ranges_are_analytic():
 
 def test_box_front_face_at_known_distance():
     van = Actor(7, "Van", [Part(_box(-2, 2, -0.9, 0.9, 0, 2.2), GREY)], _pose(12.0, 0.0))
-    s = scan(_world(actors=[van]), preset("hdl64e").ideal(), 0)
+    spec = preset("hdl64e").ideal()
+    s = scan(_world(actors=[van]), spec, 0)
     hit = s.actor_id == 7
     assert hit.sum() > 100 and hit.sum() == len(s)
     # every return is on the rear face x = 10, the only face the sensor (x = 0, 1.73 m up,
-    # below the 2.2 m roof) can see; its range is 10 / (cos(el) cos(az))
+    # below the 2.2 m roof) can see; its range from the beam's source is (10 - x0) / (cos(el) cos(az))
     np.testing.assert_allclose(s.points[:, 0], 10.0, atol=1e-4)
     assert np.all(np.abs(s.points[:, 1]) <= 0.9 + 1e-4)
     assert np.all((s.points[:, 2] >= -1.73 - 1e-4) & (s.points[:, 2] <= 2.2 - 1.73 + 1e-4))
     el = np.deg2rad(np.asarray(HDL64E_ELEVATIONS))[s.ring]
-    np.testing.assert_allclose(_ranges(s), 10.0 / (np.cos(el) * np.cos(s.azimuth)), atol=1e-4)
+    x0 = _source(spec, s.ring, s.azimuth)[:, 0]
+    np.testing.assert_allclose(_ranges(s, spec), (10.0 - x0) / (np.cos(el) * np.cos(s.azimuth)),
+                               atol=1e-4)
 
 
 @pytest.mark.parametrize("name, table", [("hdl64e", HDL64E_ELEVATIONS),
@@ -96,10 +111,31 @@ def test_box_front_face_at_known_distance():
 def test_ring_elevations_equal_the_preset_table(name, table):
     spec = preset(name).ideal()
     s = scan(street_world(1, moving_cars=0), spec, 0)
-    el = np.degrees(np.arctan2(s.points[:, 2], np.hypot(s.points[:, 0], s.points[:, 1])))
+    p = s.points[:, :3] - _source(spec, s.ring, s.azimuth)  # seen from each beam's source
+    el = np.degrees(np.arctan2(p[:, 2], np.hypot(p[:, 0], p[:, 1])))
     np.testing.assert_allclose(el, np.asarray(table)[s.ring], atol=1e-3)
     assert spec.elevations_deg == tuple(table)
     assert set(np.unique(s.ring)) <= set(range(len(table)))
+
+
+def test_hdl64e_beams_start_above_the_origin_as_calibrated():
+    """The published unit's vertOffsetCorrection at its four quoted lasers, and what it does to
+    the lowest laser's road returns seen from the origin: -23.7 deg rather than -24.9 deg."""
+    spec = preset("hdl64e")
+    off = np.asarray(spec.source_offsets_m)
+    assert off[:32].min() > 0.19 and off[:32].max() < 0.21 and off[32:].min() > 0.10
+    assert off[-1] == pytest.approx(0.1054 - 0.0161 * 0.05 / 13.33, abs=1e-5)  # -24.9 deg
+    s = scan(_world([_box(-60, 60, -60, 60, -1, 0)]), spec.ideal(), 0)
+    low = s.ring == 63
+    e, o = np.deg2rad(-24.9), off[-1]
+    # The source sits o cos(e) above and -o sin(e) out from the origin; the beam falls 1.73 + o cos e.
+    reach = -o * np.sin(e) + (1.73 + o * np.cos(e)) / np.tan(-e)
+    np.testing.assert_allclose(np.hypot(s.points[low, 0], s.points[low, 1]), reach, atol=1e-4)
+    seen = np.degrees(np.arctan2(s.points[low, 2], np.hypot(s.points[low, 0], s.points[low, 1])))
+    assert np.median(seen) == pytest.approx(np.degrees(np.arctan2(-1.73, reach)), abs=1e-4)
+    assert -23.9 < np.median(seen) < -23.5
+    # Dropping rings keeps each kept laser's own offset.
+    assert preset("hdl64e", beams=16).source_offsets_m == spec.source_offsets_m[::4]
 
 
 def test_hdl64e_table_is_kitti_like():

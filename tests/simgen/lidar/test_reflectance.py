@@ -20,9 +20,10 @@ G = 2.375  # hdl64e range exponent: ln(0.8 / 0.1) / ln(120 / 50)
 
 def _spec(**kw):
     """hdl64e with every random part off: exact ranges, every detected return kept, readings
-    without per-laser gains, scatter or zero readings."""
+    without per-laser gains, scatter or zero readings; every beam from the origin (the source
+    offsets are geometry, tested in test_geometry), so a return's range is its norm."""
     base = {"noise_sigma": 0.0, "bias_sigma": 0.0, "dropout": 0.0, "gain_sigma": 0.0,
-            "reading_sigma": 0.0, "zero_share_median": 0.0, "motion": False}
+            "reading_sigma": 0.0, "zero_share_median": 0.0, "motion": False, "source_offsets_m": ()}
     return replace(preset("hdl64e"), **{**base, **kw})
 
 

@@ -1,0 +1,156 @@
+"""Roads that rise and fall: the profile's geometry, hand-computed, and a world laid onto it."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from simgen.relief import MAX_EDGE, drape_mesh
+from simgen.road import RoadLayout, VerticalProfile
+from simgen.sample import sample_world
+from simgen.spec import load_spec, spec_from_dict
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def test_profile_heights_and_grades_by_hand():
+    # Ahead: level for 10 m, then -5 % reached over L = K x 5 = 50 m; behind: +3 % over 30 m.
+    p = VerticalProfile(grade_ahead=-0.05, grade_behind=0.03, k=10.0, start=10.0)
+    z, g = p.height_and_grade([0.0, 10.0, 35.0, 60.0, 70.0, -25.0, -40.0, -50.0])
+    np.testing.assert_allclose(z, [0.0, 0.0, -0.05 * 25**2 / 100, -1.25, -1.75,
+                                   0.03 * 15**2 / 60, 0.45, 0.75], atol=1e-12)
+    # Going backwards the road rises at 3 %: dz/ds = -0.03 once the curve behind is done.
+    np.testing.assert_allclose(g, [0.0, 0.0, -0.025, -0.05, -0.05, -0.015, -0.03, -0.03], atol=1e-12)
+
+
+def test_grade_is_the_derivative_of_height():
+    p = VerticalProfile(0.04, -0.06, 15.0, 5.0)
+    s = np.linspace(-100.0, 150.0, 2001)
+    z, g = p.height_and_grade(s)
+    np.testing.assert_allclose(np.gradient(z, s)[1:-1], g[1:-1], atol=2e-4)
+
+
+def _curved(profile=None):
+    return RoadLayout(0.004, 2, 3.5, 0, 3.0, 0.15, True, -60.0, 160.0, profile=profile)
+
+
+def test_arc_length_of_a_point_on_a_curved_road():
+    road = _curved()
+    s = np.array([-50.0, 0.0, 33.0, 120.0])
+    for d in (-9.0, 0.0, 12.0):
+        np.testing.assert_allclose(road.s_of(*road.xy(s, d).T), s, atol=1e-9)
+
+
+def test_surface_normal_matches_the_height_field():
+    road = _curved(VerticalProfile(-0.05, 0.02, 12.0, 8.0))
+    h = 1e-4
+    for x, y in [(30.0, 2.0), (55.0, 9.0), (-30.0, -4.0)]:
+        gx = (road.height(x + h, y) - road.height(x - h, y)) / (2 * h)
+        gy = (road.height(x, y + h) - road.height(x, y - h)) / (2 * h)
+        n = np.array([-gx, -gy, 1.0]) / np.linalg.norm([gx, gy, 1.0])
+        np.testing.assert_allclose(road.surface_normal(x, y), n, atol=1e-7)
+
+
+def test_a_road_level_where_the_plane_is_fitted_gives_the_flat_plane():
+    road = RoadLayout(0.0, 2, 3.5, 0, 3.0, 0.15, False, -20.0, 160.0,
+                      profile=VerticalProfile(0.05, -0.05, 20.0, 60.0))
+    np.testing.assert_allclose(road.fitted_plane(0.0, 40.0), [0, 0, 1, 0], atol=1e-12)
+    # On a constant 4 % grade (a curve of K = 1 m/%: 4 m long, from s = 0) the plane is the grade.
+    steep = RoadLayout(0.0, 2, 3.5, 0, 3.0, 0.15, False, -20.0, 160.0,
+                       profile=VerticalProfile(0.04, 0.0, 1.0, 0.0))
+    a, b, c, _ = steep.fitted_plane(4.0, 40.0)
+    assert -a / c == pytest.approx(0.04, abs=1e-12) and b == pytest.approx(0.0, abs=1e-12)
+
+
+def test_draped_mesh_follows_the_road_and_keeps_walls_vertical():
+    import trimesh
+
+    road = RoadLayout(0.0, 2, 3.5, 0, 3.0, 0.15, False, -20.0, 160.0,
+                      profile=VerticalProfile(-0.05, 0.0, 10.0, 0.0))
+    wall = trimesh.creation.box(extents=(30.0, 0.2, 10.0))
+    wall.apply_translation([40.0, 8.0, 5.0])
+    out = drape_mesh(wall, road)
+    v = np.asarray(out.vertices)
+    e = v[out.edges_unique]
+    assert np.hypot(*(e[:, 0, :2] - e[:, 1, :2]).T).max() <= MAX_EDGE + 1e-9
+    # Each vertex rose by the road's height under it: heights above the road stay within 0-10 m,
+    # the bottom on the road; the walls stay vertical (side faces keep horizontal normals).
+    above = v[:, 2] - road.height(v[:, 0], v[:, 1])
+    assert above.min() == pytest.approx(0.0, abs=1e-9) and above.max() == pytest.approx(10.0, abs=1e-9)
+    nz = np.abs(out.face_normals[:, 2])
+    assert np.all((nz < 1e-9) | (nz > 0.99)) and (nz < 1e-9).any() and (nz > 0.99).any()
+
+
+def test_flat_specs_build_the_flat_world():
+    spec = spec_from_dict({"name": "flat"})
+    world = sample_world(spec, 0, 0)
+    assert "profile" not in world.scenery["road"]
+    assert all(np.asarray(p.mesh.vertices)[:, 2].min() >= -1e-9 for p in world.static)
+
+
+def test_road_surface_under_a_graded_world_is_where_the_camera_sees_it():
+    """The rendered depth of road pixels ahead meets the profile: the camera sees the draped mesh."""
+    from simgen.render import render
+
+    spec = load_spec(ROOT / "scenes/golden/street.yaml")
+    d = spec.model_dump()
+    d["road"].update(grade_ahead=-0.05, vertical_k=10.0, vertical_start=5.0)
+    d["traffic"].update(vehicles_per_100m=0.0, parked_per_100m=0.0, pedestrians_per_100m=0.0,
+                        cyclists_per_100m=0.0)
+    world = sample_world(type(spec).model_validate(d), 0, 0)
+    road = RoadLayout(**world.scenery["road"])
+    out = render(world)
+    calib = world.rig.calib
+    world_from_rect = world.rig.reference_pose @ np.linalg.inv(calib.velo_to_rect)
+    checked = 0
+    for v in range(200, 260, 6):  # image rows from the horizon down, along the ego lane
+        depth = float(out.depth[v, 560])
+        if not 0 < depth < 80:
+            continue
+        p = calib.image_to_rect(np.array([[560.0, v]]), np.array([depth]))[0]
+        x, y, z = (world_from_rect @ np.append(p, 1.0))[:3]
+        if x > 12:
+            assert z == pytest.approx(float(road.height(x, y)), abs=0.03)
+            checked += 1
+    assert checked >= 4
+
+
+def test_a_car_tilted_on_a_grade_is_labelled_by_its_upright_box_on_the_road():
+    """KITTI's label holds a yaw only: the tilted car's label is the upright box of its size about
+    its bottom centre on the road, and the 2D box is that box's projection, as in KITTI."""
+    from kitti.boxes import project_boxes
+    from simgen.labels import derive
+    from simgen.meshes import build_actor_parts
+    from simgen.relief import drape_actor
+    from simgen.rigs import onboard_rig
+    from simgen.spec import LabelRules
+    from simgen.world import Actor, Light, Weather, World
+
+    road = RoadLayout(0.0, 2, 3.5, 0, 3.0, 0.15, False, -20.0, 160.0,
+                      profile=VerticalProfile(-0.06, 0.0, 10.0, 0.0))
+    recipe = {"kind": "car", "dims": [1.53, 1.63, 3.88], "color": [0.5, 0.5, 0.5], "seed": 3}
+    T = np.eye(4)
+    T[:3, 3] = [25.0, 1.5, 0.0]
+    car = Actor(1, "Car", build_actor_parts(recipe), T, velocity=np.array([10.0, 0.0, 0.0]), recipe=recipe)
+    drape_actor(car, road)
+    grade = road.profile.height_and_grade(25.0)[1]
+    assert car.velocity[2] == pytest.approx(10.0 * grade, rel=1e-12)  # moves along the road
+    rig = onboard_rig()
+    world = World(actors=[car], static=[], weather=Weather(), lidar_pose=rig.reference_pose.copy(),
+                  rig=rig, light=Light())
+    from simgen.render import render
+
+    rows, _ = derive(world, render(world).instance,
+                          LabelRules(min_height_px=0, max_distance=1000, min_visible_share=0.0))
+    (row,) = rows
+    h, w, l = row.box7[3:6]
+    assert (h, w, l) == pytest.approx((1.53, 1.63, 3.88), abs=1e-9)
+    assert row.box7[6] == pytest.approx(-np.pi / 2, abs=1e-9)  # heading +x, as on a flat road
+    # The bottom centre (rect coords) back in the world lies on the road under it.
+    world_from_rect = rig.reference_pose @ np.linalg.inv(rig.calib.velo_to_rect)
+    x, y, z = (world_from_rect @ np.append(row.box7[:3], 1.0))[:3]
+    assert z == pytest.approx(float(road.height(x, y)), abs=1e-9)
+    size = (rig.width, rig.height)
+    np.testing.assert_allclose(row.bbox, project_boxes(row.box7[None], rig.calib, size)[0], atol=1e-6)
