@@ -13,6 +13,7 @@ from kitti.derived import dump_json
 from kitti.planes import read_plane
 from simgen.generate import Job, decode_depth, frame_files, generate, make_frame
 from simgen.meta import world_from_meta, world_to_meta
+from simgen.road import RoadLayout
 from simgen.sample import sample_world
 from simgen.spec import load_spec, spec_to_dict
 from testbed.backends import LocalBackend
@@ -80,7 +81,8 @@ def test_dataset_reads_back_with_the_kitti_package(spec, tmp_path):
     meta = json.loads((tmp_path / "training/meta/000003.json").read_text())
     world = world_from_meta(meta)
     plane = read_plane(tmp_path / "training/planes/000003.txt")
-    np.testing.assert_allclose(plane, world.rig.road_plane_rect(), atol=1e-6)
+    road = RoadLayout(**world.scenery["road"])  # the street rises or falls: a fitted plane
+    np.testing.assert_allclose(plane, world.rig.road_plane_rect(road.fitted_plane()), atol=1e-6)
     import cv2
     depth = decode_depth(cv2.imread(str(tmp_path / "training/depth_2/000003.png"), cv2.IMREAD_UNCHANGED))
     inst = cv2.imread(str(tmp_path / "training/instance_2/000003.png"), cv2.IMREAD_UNCHANGED)
