@@ -26,7 +26,7 @@ import numpy as np  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
 from simgen.lidar import CLUTTER_ID, build_target, preset, ray_table, scan  # noqa: E402
-from simgen.lidar.scan import _world_dirs  # noqa: E402
+from simgen.lidar.scan import _world_dirs, _world_source  # noqa: E402
 from simgen.sample import sample_world  # noqa: E402
 from simgen.spec import load_spec  # noqa: E402
 from simgen.world import Weather  # noqa: E402
@@ -53,6 +53,8 @@ def bare_query(world, spec, tgt):
     o = np.empty_like(d)
     np.multiply(rays.time32[:, None], np.asarray(world.ego_velocity, np.float32)[None], out=o)
     o += world.lidar_pose[:3, 3].astype(np.float32)
+    if rays.source is not None:  # the same rays as the sweep's: each from its laser's source
+        o += _world_source(spec, tuple(world.lidar_pose[:3, :3].ravel().tolist()))
     return lambda: tgt.scene.run(o, d, dists=spec.max_range + 1.0, output=1)
 
 

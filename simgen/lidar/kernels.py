@@ -222,13 +222,14 @@ def detect_rays(prim, tfar, ng, d_w, origins, inv_ng, loss, tri_refl, tri_expo, 
 
 @numba.njit(cache=True, nogil=True)
 def read_returns(idx, r, rho, need, v, scatter, ext, noise, noise_sigma, bias, gain, floor_power,
-                 floor0, per_step, k_max, dirs4, ring_t, az_t, time_t):
+                 floor0, per_step, k_max, dirs4, source, ring_t, az_t, time_t):
     """The output rows (scan.py, steps 5 and 7), in float32. Per return: the range takes its
     laser's `bias` and its standard normal `noise` * `noise_sigma` (zero-length: neither); the
     reading is 0 where v < 0 (the laser's zero share), else s = gain * scatter[v] * rho_eff
     (* `ext`, two-way extinction; zero-length: clear air), `scatter` the scatter's quantiles at
     len(scatter) equal steps of v; s reads 0 below max(floor0, floor_power * need), else
-    k / per_step, k = round(s * per_step) <= k_max."""
+    k / per_step, k = round(s * per_step) <= k_max. A return lies at its ray's `source` (N, 3;
+    zero-length: the origin) + range x direction."""
     n = idx.shape[0]
     points = np.empty((n, 4), np.float32)
     ring = np.empty(n, np.uint8)
@@ -236,6 +237,7 @@ def read_returns(idx, r, rho, need, v, scatter, ext, noise, noise_sigma, bias, g
     tm = np.empty(n, np.float32)
     noisy = noise.shape[0] > 0
     has_ext = ext.shape[0] > 0
+    has_src = source.shape[0] > 0
     n_q = scatter.shape[0]
     for k in range(n):
         i = idx[k]
@@ -245,6 +247,9 @@ def read_returns(idx, r, rho, need, v, scatter, ext, noise, noise_sigma, bias, g
             rr = rr + bias[lz] + noise[k] * noise_sigma
         for a in range(3):
             points[k, a] = dirs4[i, a] * rr
+        if has_src:
+            for a in range(3):
+                points[k, a] += source[i, a]
         ring[k] = lz
         az[k] = az_t[i]
         tm[k] = time_t[i]

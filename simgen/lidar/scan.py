@@ -90,9 +90,7 @@ def _origins(world: World, spec: LidarSpec, rays: RayTable, n: int) -> np.ndarra
         origins = np.empty((n, 3), np.float32)
         origins[:] = o0
     if rays.source is not None:  # each beam starts at its laser's source, rotated with the rig
-        m = world.lidar_pose[:3, :3].astype(np.float32)
-        src = rays.source
-        origins += src[:, 0:1] * m[:, 0] + src[:, 1:2] * m[:, 1] + src[:, 2:3] * m[:, 2]
+        origins += _world_source(spec, tuple(world.lidar_pose[:3, :3].ravel().tolist()))
     return origins
 
 
@@ -191,14 +189,12 @@ def _read(spec: LidarSpec, rng: np.random.Generator, beta: float, idx: np.ndarra
     noisy = spec.noise_sigma > 0 or spec.bias_sigma > 0
     noise = rng.standard_normal(len(idx), dtype=f32) if noisy else np.zeros(0, f32)
     lasers = _laser_tables(spec)
-    out = read_returns(idx, r, rho, need, v, _scatter_quantiles(spec.reading_sigma), ext, noise,
+    source = rays.source if rays.source is not None else np.zeros((0, 3), f32)
+    return read_returns(idx, r, rho, need, v, _scatter_quantiles(spec.reading_sigma), ext, noise,
                         f32(spec.noise_sigma), lasers["bias"], lasers["gain"],
                         f32(spec.refl_floor_power), f32(spec.refl_floor), f32(1.0 / spec.refl_step),
-                        f32(round(spec.refl_max / spec.refl_step)), rays.dirs4, rays.ring,
+                        f32(round(spec.refl_max / spec.refl_step)), rays.dirs4, source, rays.ring,
                         rays.azimuth, rays.time32)
-    if rays.source is not None:  # the return lies at the beam's source + range x direction
-        out[0][:, :3] += rays.source[idx]
-    return out
 
 
 @lru_cache(maxsize=8)
@@ -256,6 +252,15 @@ def _world_dirs(spec: LidarSpec, rot: tuple[float, ...]) -> np.ndarray:
     d = ray_table(spec).dirs32
     m = np.asarray(rot, dtype=np.float32).reshape(3, 3)
     return np.ascontiguousarray(d[:, 0:1] * m[:, 0] + d[:, 1:2] * m[:, 1] + d[:, 2:3] * m[:, 2])
+
+
+@lru_cache(maxsize=16)
+def _world_source(spec: LidarSpec, rot: tuple[float, ...]) -> np.ndarray:
+    """Where each ray starts relative to the LiDAR's origin, in the world frame (RayTable.source
+    rotated with the rig), cached like `_world_dirs`."""
+    src = ray_table(spec).source
+    m = np.asarray(rot, dtype=np.float32).reshape(3, 3)
+    return np.ascontiguousarray(src[:, 0:1] * m[:, 0] + src[:, 1:2] * m[:, 1] + src[:, 2:3] * m[:, 2])
 
 
 @lru_cache(maxsize=16)
