@@ -143,6 +143,11 @@ def _triangles(parts: list[Part]) -> tuple[np.ndarray, np.ndarray]:
     return tris, n
 
 
+def _vertices(parts: list[Part]) -> np.ndarray:
+    """(V, 3) vertices of all parts in part order (the shadow casters' shared vertices)."""
+    return np.concatenate([np.asarray(p.mesh.vertices).view(np.ndarray) for p in parts])
+
+
 def _primitive(tris: np.ndarray, normals: np.ndarray, rgba: np.ndarray, material,
                uv: np.ndarray | None = None) -> pyrender.Primitive:
     """Flat faces: vertices unshared per face, a colour per face."""
@@ -248,8 +253,9 @@ def _actor_meshes(bodies: list[tuple[list[Part], np.ndarray, bool]],
     else:
         rgba = shader.colors(parts, world_tris, world_n, False)
     ends = np.cumsum([len(t) for t, _ in geo])[:-1]
+    world_v = np.concatenate([_vertices(b) @ pose[:3, :3].T + pose[:3, 3] for b, pose, _ in bodies])
     return ([pyrender.Mesh([_primitive(t, n, c, _PLAIN)]) for (t, n), c in zip(geo, np.split(rgba, ends))],
-            Occluders.of_parts(parts, world_tris))
+            Occluders.of_parts(parts, world_tris, world_v))
 
 
 def _lamp_mesh(part: Part, material) -> pyrender.Mesh:
@@ -293,7 +299,7 @@ def _static_mesh(parts: list[Part], shader: _Shader, world: World) -> tuple[pyre
     gain = np.exp(rng.normal(0.0, look.colour_jitter, (len(parts), 3)))
     tris, normals = _triangles(parts)
     rgba = shader.colors(parts, tris, normals, False, gain)
-    casters = Occluders.of_parts(parts, tris)
+    casters = Occluders.of_parts(parts, tris, _vertices(parts))
     if shader.mode != "lit" or not look.textures:
         return pyrender.Mesh([_primitive(tris, normals, rgba, _PLAIN)]), casters
     owner = np.repeat(np.arange(len(parts)), [len(p.mesh.faces) for p in parts])
@@ -441,9 +447,13 @@ def shade(world: World, color: np.ndarray, depth: np.ndarray, casters: Occluders
     rig = world.rig
     depth_of_shadow = sun_shadow(casters, depth, rig.intrinsics(), rig.cam2_from_world(),
                                  _to_sun(world.light), color[..., 3] < 250)
-    rest = color[..., 3:4].astype(np.float32) / 255.0 * _shade_tint(world.light.time)
-    factor = 1.0 - depth_of_shadow[..., None] * (1.0 - rest)
-    return np.clip(np.round(rgb * factor), 0, 255).astype(np.uint8)
+    # Only shadowed pixels change (elsewhere the factor is exactly 1): the same arithmetic on them.
+    out = np.array(rgb)
+    shadowed = depth_of_shadow != 0
+    rest = color[shadowed][:, 3:4].astype(np.float32) / 255.0 * _shade_tint(world.light.time)
+    factor = 1.0 - depth_of_shadow[shadowed][:, None] * (1.0 - rest)
+    out[shadowed] = np.clip(np.round(rgb[shadowed] * factor), 0, 255).astype(np.uint8)
+    return out
 
 
 def render(world: World) -> RenderOutput:
