@@ -134,18 +134,44 @@ def _textured(kind: str, variant: int) -> pyrender.MetallicRoughnessMaterial:
     return _TEXTURED[key]
 
 
+def _shared(parts: list[Part]) -> tuple[np.ndarray, np.ndarray]:
+    """(V, 3) vertices and (F, 3) faces of all parts in part order, the faces indexing the joint
+    vertices (numpy, no trimesh caches)."""
+    vs = [np.asarray(p.mesh.vertices).view(np.ndarray) for p in parts]
+    fs = [np.asarray(p.mesh.faces).view(np.ndarray) for p in parts]
+    return np.concatenate(vs), _joint_faces(fs, [len(v) for v in vs])
+
+
+def _joint_faces(faces: list[np.ndarray], n_vertices: list[int]) -> np.ndarray:
+    """Faces of several meshes indexing their concatenated vertices."""
+    first = np.cumsum([0, *n_vertices[:-1]])
+    return np.concatenate(faces) + np.repeat(first, [len(f) for f in faces])[:, None]
+
+
 def _triangles(parts: list[Part]) -> tuple[np.ndarray, np.ndarray]:
-    """(F, 3, 3) triangles and (F, 3) unit normals of all parts (numpy, no trimesh caches)."""
-    tris = np.concatenate([np.asarray(p.mesh.vertices).view(np.ndarray)[np.asarray(p.mesh.faces).view(np.ndarray)]
-                           for p in parts])
+    """(F, 3, 3) triangles and (F, 3) unit normals of all parts."""
+    return _faceted(*_shared(parts))
+
+
+def _faceted(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(F, 3, 3) triangles and (F, 3) unit normals of a mesh."""
+    tris = vertices[faces]
+    return tris, _normals(tris)
+
+
+def _normals(tris: np.ndarray) -> np.ndarray:
+    """(F, 3) unit normals of (F, 3, 3) triangles."""
     n = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
     n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
-    return tris, n
+    return n
 
 
-def _vertices(parts: list[Part]) -> np.ndarray:
-    """(V, 3) vertices of all parts in part order (the shadow casters' shared vertices)."""
-    return np.concatenate([np.asarray(p.mesh.vertices).view(np.ndarray) for p in parts])
+def _split_faceted(meshes: list[tuple[np.ndarray, np.ndarray]]) -> list[tuple[np.ndarray, np.ndarray]]:
+    """_faceted of each mesh, computed for all at once (elementwise and per-row work: the same
+    bits as one by one)."""
+    tris = np.concatenate([v[f] for v, f in meshes])
+    ends = np.cumsum([len(f) for _, f in meshes])[:-1]
+    return list(zip(np.split(tris, ends), np.split(_normals(tris), ends)))
 
 
 def _primitive(tris: np.ndarray, normals: np.ndarray, rgba: np.ndarray, material,
@@ -244,7 +270,8 @@ def _actor_meshes(bodies: list[tuple[list[Part], np.ndarray, bool]],
     vectorised pass in the world frame; and their triangles (world frame) as shadow casters."""
     if not bodies:
         return [], Occluders(np.zeros((0, 3, 3), np.float32), np.zeros(0, np.float32))
-    geo = [_triangles(parts) for parts, _, _ in bodies]
+    shared = [_shared(parts) for parts, _, _ in bodies]
+    geo = _split_faceted(shared)
     world_tris = np.concatenate([t @ pose[:3, :3].T + pose[:3, 3] for (t, _), (_, pose, _) in zip(geo, bodies)])
     world_n = np.concatenate([n @ pose[:3, :3].T for (_, n), (_, pose, _) in zip(geo, bodies)])
     parts = [p for b, _, _ in bodies for p in b]
@@ -253,9 +280,10 @@ def _actor_meshes(bodies: list[tuple[list[Part], np.ndarray, bool]],
     else:
         rgba = shader.colors(parts, world_tris, world_n, False)
     ends = np.cumsum([len(t) for t, _ in geo])[:-1]
-    world_v = np.concatenate([_vertices(b) @ pose[:3, :3].T + pose[:3, 3] for b, pose, _ in bodies])
+    world_v = np.concatenate([v @ pose[:3, :3].T + pose[:3, 3] for (v, _), (_, pose, _) in zip(shared, bodies)])
+    faces = _joint_faces([f for _, f in shared], [len(v) for v, _ in shared])
     return ([pyrender.Mesh([_primitive(t, n, c, _PLAIN)]) for (t, n), c in zip(geo, np.split(rgba, ends))],
-            Occluders.of_parts(parts, world_tris, world_v))
+            Occluders.of_parts(parts, world_tris, (world_v, faces)))
 
 
 def _lamp_mesh(part: Part, material) -> pyrender.Mesh:
@@ -297,9 +325,10 @@ def _static_mesh(parts: list[Part], shader: _Shader, world: World) -> tuple[pyre
     rng = factor_rng(world.seed, world.frame_index, "appearance")
     look = world.appearance
     gain = np.exp(rng.normal(0.0, look.colour_jitter, (len(parts), 3)))
-    tris, normals = _triangles(parts)
+    vertices, faces = _shared(parts)
+    tris, normals = _faceted(vertices, faces)
     rgba = shader.colors(parts, tris, normals, False, gain)
-    casters = Occluders.of_parts(parts, tris, _vertices(parts))
+    casters = Occluders.of_parts(parts, tris, (vertices, faces))
     if shader.mode != "lit" or not look.textures:
         return pyrender.Mesh([_primitive(tris, normals, rgba, _PLAIN)]), casters
     owner = np.repeat(np.arange(len(parts)), [len(p.mesh.faces) for p in parts])

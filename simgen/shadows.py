@@ -41,19 +41,18 @@ class Occluders:
     faces: np.ndarray | None = None  # (F, 3) int32
 
     @staticmethod
-    def of_parts(parts: list[Part], tris: np.ndarray, vertices: np.ndarray | None = None) -> Occluders:
-        """The parts' triangles (already in the world frame, in part order). `vertices`, if
-        given, are the parts' vertices in that frame and order; they are kept only where they
-        give `tris` exactly."""
+    def of_parts(parts: list[Part], tris: np.ndarray,
+                 shared: tuple[np.ndarray, np.ndarray] | None = None) -> Occluders:
+        """The parts' triangles (already in the world frame, in part order). `shared`, if given:
+        the same triangles as (vertices, faces), faces indexing the vertices; kept only where
+        they give `tris` exactly."""
         depth = np.repeat([1.0 - p.material.porosity ** 2 for p in parts],
                           [len(p.mesh.faces) for p in parts]).astype(np.float32)
         tris = np.asarray(tris, np.float32).reshape(-1, 3, 3)
-        if vertices is None or not parts:
+        if shared is None:
             return Occluders(tris, depth)
-        vertices = np.asarray(vertices, np.float32)
-        first = np.cumsum([0] + [len(p.mesh.vertices) for p in parts[:-1]])
-        faces = np.concatenate([np.asarray(p.mesh.faces) + f for p, f in zip(parts, first)]).astype(np.int32)
-        if not np.array_equal(vertices[faces], tris):
+        vertices, faces = np.asarray(shared[0], np.float32), np.asarray(shared[1], np.int32)
+        if faces.shape != (len(tris), 3) or not np.array_equal(vertices[faces], tris):
             return Occluders(tris, depth)
         return Occluders(tris, depth, vertices, faces)
 
