@@ -482,9 +482,17 @@ def _bus(rng, c: Material, dims) -> list[Part]:
 
 def _limb(a, b, r) -> Shape:
     """A box-section limb from point a to point b (closed convex hull)."""
-    a, b = np.asarray(a, float), np.asarray(b, float)
+    return _limb_at(tuple(np.asarray(a, float).tolist()), tuple(np.asarray(b, float).tolist()), float(r))
+
+
+@functools.lru_cache(maxsize=256)
+def _limb_at(a: tuple, b: tuple, r: float) -> Shape:
+    """_limb by value: a cyclist's frame and legs are the same on every bike (qhull, 0.1 ms each)."""
+    a, b = np.array(a), np.array(b)
     offs = np.array([[dx, dy, 0.0] for dx in (-r, r) for dy in (-r, r)])
-    return hull(np.concatenate([a + offs, b + offs]))
+    shape = hull(np.concatenate([a + offs, b + offs]))
+    shape.vertices.flags.writeable = shape.faces.flags.writeable = False  # shared by every caller
+    return shape
 
 
 @functools.cache
