@@ -174,12 +174,13 @@ def _split_faceted(meshes: list[tuple[np.ndarray, np.ndarray]]) -> list[tuple[np
     return list(zip(np.split(tris, ends), np.split(_normals(tris), ends)))
 
 
-def _primitive(tris: np.ndarray, normals: np.ndarray, rgba: np.ndarray, material,
+def _primitive(tris: np.ndarray, normals: np.ndarray | None, rgba: np.ndarray, material,
                uv: np.ndarray | None = None) -> pyrender.Primitive:
-    """Flat faces: vertices unshared per face, a colour per face."""
+    """Flat faces: vertices unshared per face, a colour per face. Normals only where pyrender
+    lights per pixel (None under its flat shader, which never reads them: less to upload)."""
     return pyrender.Primitive(
         positions=tris.reshape(-1, 3).astype(np.float32),
-        normals=np.repeat(normals, 3, axis=0).astype(np.float32),
+        normals=None if normals is None else np.repeat(normals, 3, axis=0).astype(np.float32),
         color_0=np.repeat(rgba, 3, axis=0).astype(np.float32),
         texcoord_0=None if uv is None else uv.reshape(-1, 2).astype(np.float32), material=material)
 
@@ -241,6 +242,11 @@ class _Shader:
         rgb = np.clip(lin / self.headroom, 0.0, 1.0) ** (1 / 2.2)
         return np.c_[rgb, np.clip(rest, 0.0, 1.0) ** (1 / 2.2)]
 
+    def gl_normals(self, normals: np.ndarray) -> np.ndarray | None:
+        """The normals pyrender needs: per-pixel lighting ('pbr') reads them, the flat shader of
+        the other looks does not."""
+        return normals if self.mode == "pbr" else None
+
     def _mirror(self, centres: np.ndarray, normals: np.ndarray) -> np.ndarray:
         """Radiance a clear coat or pane reflects towards the eye: sky or ground, and the sun."""
         view = self.eye - centres
@@ -282,7 +288,8 @@ def _actor_meshes(bodies: list[tuple[list[Part], np.ndarray, bool]],
     ends = np.cumsum([len(t) for t, _ in geo])[:-1]
     world_v = np.concatenate([v @ pose[:3, :3].T + pose[:3, 3] for (v, _), (_, pose, _) in zip(shared, bodies)])
     faces = _joint_faces([f for _, f in shared], [len(v) for v, _ in shared])
-    return ([pyrender.Mesh([_primitive(t, n, c, _PLAIN)]) for (t, n), c in zip(geo, np.split(rgba, ends))],
+    return ([pyrender.Mesh([_primitive(t, shader.gl_normals(n), c, _PLAIN)])
+             for (t, n), c in zip(geo, np.split(rgba, ends))],
             Occluders.of_parts(parts, world_tris, (world_v, faces)))
 
 
@@ -330,7 +337,7 @@ def _static_mesh(parts: list[Part], shader: _Shader, world: World) -> tuple[pyre
     rgba = shader.colors(parts, tris, normals, False, gain)
     casters = Occluders.of_parts(parts, tris, (vertices, faces))
     if shader.mode != "lit" or not look.textures:
-        return pyrender.Mesh([_primitive(tris, normals, rgba, _PLAIN)]), casters
+        return pyrender.Mesh([_primitive(tris, shader.gl_normals(normals), rgba, _PLAIN)]), casters
     owner = np.repeat(np.arange(len(parts)), [len(p.mesh.faces) for p in parts])
     prims, plain = [], np.ones(len(tris), bool)
     for i, part in enumerate(parts):
@@ -353,10 +360,10 @@ def _static_mesh(parts: list[Part], shader: _Shader, world: World) -> tuple[pyre
             else:
                 uv = _planar_uv(tris[sel], normals[sel], tile, rng.uniform(0, 1, 2))
             colour = rgba[sel] * np.array([textures.MAX_GAIN] * 3 + [1.0])
-            prims.append(_primitive(tris[sel], normals[sel], colour, _textured(kind, variant), uv))
+            prims.append(_primitive(tris[sel], None, colour, _textured(kind, variant), uv))  # lit: flat
             plain &= ~sel
     if plain.any():
-        prims.append(_primitive(tris[plain], normals[plain], rgba[plain], _PLAIN))
+        prims.append(_primitive(tris[plain], None, rgba[plain], _PLAIN))
     return pyrender.Mesh(prims), casters
 
 
@@ -393,11 +400,10 @@ def _sky_dome(world: World, headroom: float) -> pyrender.Mesh:
     quads = np.stack([i * 49 + j, i * 49 + j + 1, (i + 1) * 49 + j + 1, (i + 1) * 49 + j], -1).reshape(-1, 4)
     faces = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
     tris, uv = P.reshape(-1, 3)[faces], UV.reshape(-1, 2)[faces]
-    normals = -tris.mean(axis=1) / _DOME_RADIUS
     tex = pyrender.Texture(source=_sky_texture(rng, world.appearance.cloud_cover, headroom),
                            source_channels="RGB")
     mat = pyrender.MetallicRoughnessMaterial(baseColorTexture=tex, metallicFactor=0.0, doubleSided=True)
-    return pyrender.Mesh([_primitive(tris, normals, np.ones((len(tris), 4)), mat, uv)])
+    return pyrender.Mesh([_primitive(tris, None, np.ones((len(tris), 4)), mat, uv)])  # lit looks: flat
 
 
 def _seg_code(actor_id: int) -> tuple[int, int, int]:
