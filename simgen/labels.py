@@ -98,24 +98,31 @@ def silhouette(actor: Actor, cam_from_world: np.ndarray, K: np.ndarray) -> shape
 
     Procedural actors are unions of convex parts: the silhouette is the union of the parts'
     projected hulls (one vectorised shapely call). User meshes may be anything: the union of
-    their projected triangles."""
+    their projected triangles. Each part's vertices are transformed and projected by a product
+    of their own (as many small matrix products as parts: the same bits whatever the batch);
+    everything elementwise runs on all parts at once."""
     M = cam_from_world @ actor.pose
+    rot, shift = M[:3, :3].T, M[:3, 3]
     meshes = [p.mesh for p in actor.parts]
-    verts = [np.asarray(m.vertices) @ M[:3, :3].T + M[:3, 3] for m in meshes]
-    if max(float(v[:, 2].max()) for v in verts) < NEAR:
+    verts = [np.asarray(m.vertices).view(np.ndarray) @ rot + shift for m in meshes]
+    sizes = [len(v) for v in verts]
+    starts = np.cumsum([0, *sizes[:-1]])
+    z = np.concatenate([v[:, 2] for v in verts])
+    zmin, zmax = np.minimum.reduceat(z, starts), np.maximum.reduceat(z, starts)
+    if float(zmax.max()) < NEAR:
         return None
     geoms = []
     if actor.recipe.get("kind") != "user":
-        whole = [i for i, v in enumerate(verts) if v[:, 2].min() >= NEAR]
+        whole = np.flatnonzero(zmin >= NEAR).tolist()
         if whole:
-            pts = np.concatenate([_project(verts[i], K) for i in whole])
-            idx = np.concatenate([np.full(len(verts[i]), k) for k, i in enumerate(whole)])
+            uvw = np.concatenate([verts[i] @ K.T for i in whole])
+            pts = uvw[..., :2] / uvw[..., 2:3]
+            idx = np.repeat(np.arange(len(whole)), [sizes[i] for i in whole])
             geoms += list(shapely.convex_hull(shapely.multipoints(pts, indices=idx)))
-        for i, v in enumerate(verts):
-            if v[:, 2].min() < NEAR <= v[:, 2].max():
-                g = _convex_part_outline(v, np.asarray(meshes[i].edges_unique), K)
-                if g is not None:
-                    geoms.append(g)
+        for i in np.flatnonzero((zmin < NEAR) & (NEAR <= zmax)).tolist():
+            g = _convex_part_outline(verts[i], np.asarray(meshes[i].edges_unique), K)
+            if g is not None:
+                geoms.append(g)
     else:
         for m, v in zip(meshes, verts):
             tri = v[np.asarray(m.faces)]
@@ -123,8 +130,11 @@ def silhouette(actor: Actor, cam_from_world: np.ndarray, K: np.ndarray) -> shape
             cut = (zmin < NEAR) & (tri[:, :, 2].max(axis=1) >= NEAR)
             geoms += list(shapely.polygons(_project(tri[zmin >= NEAR], K)))
             geoms += [shapely.Polygon(_project(q, K)) for q in _clip_near(tri[cut])]
-    geoms = [g for g in geoms if g.area > 0]
-    return shapely.union_all(geoms) if geoms else None
+    if not geoms:
+        return None
+    geoms = np.array(geoms, dtype=object)
+    geoms = geoms[shapely.area(geoms) > 0]
+    return shapely.union_all(geoms) if len(geoms) else None
 
 
 _BOX_CORNERS = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], float)

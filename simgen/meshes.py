@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import trimesh
@@ -94,18 +95,32 @@ def paint(color) -> Material:
     return paint_material("paint", color)
 
 
-def hull(points) -> trimesh.Trimesh:
+class Shape(NamedTuple):
+    """A part's vertices and faces before fit_parts: the builders pass plain arrays, and only
+    fit_parts makes the trimesh (whose constructor costs more than most of these shapes)."""
+
+    vertices: np.ndarray
+    faces: np.ndarray
+
+
+def _trimesh(shape: Shape) -> trimesh.Trimesh:
+    return trimesh.Trimesh(shape.vertices, shape.faces, process=False)
+
+
+def hull(points) -> Shape:
     """Closed convex hull of a point set, faces wound outward: watertight by construction.
 
     qhull directly (trimesh's wrapper re-processes the mesh, 5x slower for these small hulls)."""
     pts = np.asarray(points, dtype=float)
     faces = ConvexHull(pts).simplices
+    used = np.unique(faces)
     tri = pts[faces]
     normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    inward = np.einsum("ij,ij->i", normal, tri.mean(axis=1) - pts[np.unique(faces)].mean(axis=0)) < 0
+    inward = np.einsum("ij,ij->i", normal, tri.mean(axis=1) - pts[used].mean(axis=0)) < 0
     faces = np.where(inward[:, None], faces[:, ::-1], faces)
-    used, inv = np.unique(faces, return_inverse=True)
-    return trimesh.Trimesh(pts[used], inv.reshape(-1, 3), process=False)
+    new_index = np.empty(len(pts), np.intp)  # what np.unique's return_inverse gives, without a sort
+    new_index[used] = np.arange(len(used))
+    return Shape(pts[used], new_index[faces])
 
 
 _BOX_FACES = np.array([[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7], [0, 1, 5], [0, 5, 4],
@@ -114,30 +129,48 @@ _BOX_FACES = np.array([[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7], [0, 1, 5], [0
 
 def box(x0, x1, y0, y1, z0, z1) -> trimesh.Trimesh:
     """Axis-aligned box from its bounds (either order), faces wound outward."""
+    return _trimesh(_box(x0, x1, y0, y1, z0, z1))
+
+
+def _box(x0, x1, y0, y1, z0, z1) -> Shape:
+    """box() as a Shape."""
     (x0, x1), (y0, y1), (z0, z1) = sorted((x0, x1)), sorted((y0, y1)), sorted((z0, z1))
     v = np.array([[x0, y0, z0], [x1, y0, z0], [x1, y1, z0], [x0, y1, z0],
                   [x0, y0, z1], [x1, y0, z1], [x1, y1, z1], [x0, y1, z1]], dtype=float)
-    return trimesh.Trimesh(v, _BOX_FACES, process=False)
+    return Shape(v, _BOX_FACES)
 
 
-def prism_xz(profile, y0, y1) -> trimesh.Trimesh:
+def prism_xz(profile, y0, y1) -> Shape:
     """A convex side profile (x, z) swept across y in [y0, y1]."""
     p = np.asarray(profile, dtype=float)
     return hull(np.concatenate([np.c_[p[:, 0], np.full(len(p), y0), p[:, 1]],
                                 np.c_[p[:, 0], np.full(len(p), y1), p[:, 1]]]))
 
 
-def _solid(v, faces) -> trimesh.Trimesh:
+def _solid(v, faces) -> Shape:
     """A closed convex solid from known faces, turned outward: qhull (hull) costs 20x more, and
     cylinders and hexahedra with planar faces need none."""
     v, faces = np.asarray(v, dtype=float), np.asarray(faces)
-    a, b, c = v[faces[0]]
-    if np.linalg.det(np.array([b - a, c - a, a - v.mean(axis=0)])) < 0:  # the first face looks inward
+    if _looks_inward(v, faces[0]):
         faces = faces[:, ::-1]
-    return trimesh.Trimesh(v, faces, process=False)
+    return Shape(v, faces)
 
 
-def hexahedron(v) -> trimesh.Trimesh:
+def _looks_inward(v: np.ndarray, face: np.ndarray) -> bool:
+    """Whether `face` turns towards the solid's vertex mean: the sign of det [b - a, c - a,
+    a - mean]. The triple product in plain floats decides (np.linalg.det costs 10 us); only
+    where it is too close to 0 for its sign to be sure does np.linalg.det, as before, decide."""
+    a, b, c = v[face]
+    m = v.mean(axis=0)
+    (u0, u1, u2), (w0, w1, w2), (z0, z1, z2) = (b - a).tolist(), (c - a).tolist(), (a - m).tolist()
+    det = u0 * (w1 * z2 - w2 * z1) - u1 * (w0 * z2 - w2 * z0) + u2 * (w0 * z1 - w1 * z0)
+    size = (abs(u0) + abs(u1) + abs(u2)) * (abs(w0) + abs(w1) + abs(w2)) * (abs(z0) + abs(z1) + abs(z2))
+    if abs(det) > 1e-9 * size:
+        return det < 0
+    return bool(np.linalg.det(np.array([b - a, c - a, a - m])) < 0)
+
+
+def hexahedron(v) -> Shape:
     """Eight corners in box() order (bottom x0y0, x1y0, x1y1, x0y1, then the top) of a solid whose
     faces are planar, e.g. a box sheared or tapered: convex by construction."""
     return _solid(v, _BOX_FACES)
@@ -156,6 +189,11 @@ def _prism_faces(n: int) -> np.ndarray:
 def extrude(outline, axis: int, lo: float, hi: float) -> trimesh.Trimesh:
     """A convex outline (corners in order round it, in the other two axes in their order)
     extruded along `axis` from lo to hi."""
+    return _trimesh(_extrude(outline, axis, lo, hi))
+
+
+def _extrude(outline, axis: int, lo: float, hi: float) -> Shape:
+    """extrude() as a Shape."""
     outline = np.asarray(outline, dtype=float)
     n, others = len(outline), [a for a in range(3) if a != axis]
     v = np.empty((2 * n, 3))
@@ -164,23 +202,30 @@ def extrude(outline, axis: int, lo: float, hi: float) -> trimesh.Trimesh:
     return _solid(v, _prism_faces(n))
 
 
-def _cylinder_y(x, y, z, rx, rz, width, sections) -> trimesh.Trimesh:
-    """A closed elliptic cylinder, axis along y, centred at (x, y, z)."""
+@functools.cache
+def _circle(sections: int) -> tuple[np.ndarray, np.ndarray]:
+    """cos and sin of `sections` angles evenly round the circle (the same for every wheel)."""
     a = 2 * np.pi * np.arange(sections) / sections
-    xs, zs = x + rx * np.cos(a), z + rz * np.sin(a)
+    return np.cos(a), np.sin(a)
+
+
+def _cylinder_y(x, y, z, rx, rz, width, sections) -> Shape:
+    """A closed elliptic cylinder, axis along y, centred at (x, y, z)."""
+    cos, sin = _circle(sections)
     v = np.empty((2 * sections, 3))
-    v[:, 0], v[:, 2] = np.tile(xs, 2), np.tile(zs, 2)
+    v[:sections, 0] = v[sections:, 0] = x + rx * cos
+    v[:sections, 2] = v[sections:, 2] = z + rz * sin
     v[:sections, 1], v[sections:, 1] = y - width / 2, y + width / 2
     return _solid(v, _prism_faces(sections))
 
 
-def wheel(x, y, r, width, sections=14, rx=None) -> trimesh.Trimesh:
+def wheel(x, y, r, width, sections=14, rx=None) -> Shape:
     """A closed cylinder of radius r, axis along y, standing on z = 0 at (x, y). In a frame that
     fit_parts scales unevenly, rx = r h / l keeps it round after the scaling."""
     return _cylinder_y(x, y, r, r if rx is None else rx, r, width, sections)
 
 
-def rim(x, face, r, out, sections=8, rx=None) -> trimesh.Trimesh:
+def rim(x, face, r, out, sections=8, rx=None) -> Shape:
     """The rim of a tyre of radius r standing at x, on its outer face (at y = face, outward sign
     `out`): RIM_SHARE of the tyre's radius, standing RIM_PROUD proud of the face so it reads."""
     rr, rrx = RIM_SHARE * r, RIM_SHARE * (r if rx is None else rx)
@@ -209,7 +254,7 @@ def sample_recipe(cls: str, rng: np.random.Generator) -> dict:
             "seed": int(rng.integers(2**31))}
 
 
-def _chamfered(profile, half_w: float, c: float) -> trimesh.Trimesh:
+def _chamfered(profile, half_w: float, c: float) -> Shape:
     """A convex side profile (x, z) swept across |y| <= half_w, its four vertical edges cut by c at
     45 degrees: a body's plan view is rounded at the corners."""
     p = np.asarray(profile, dtype=float)
@@ -229,7 +274,7 @@ def _on_side(s: int, belt: tuple, top: tuple, yb: float, yt: float, zb: float, z
     return hexahedron(np.concatenate([quad - 0.005 * n, quad + 0.012 * n]))
 
 
-def _mirror(s: int, x: float, inner: float, outer: float, z: float) -> trimesh.Trimesh:
+def _mirror(s: int, x: float, inner: float, outer: float, z: float) -> Shape:
     """A door mirror on side s just behind x (the windscreen's foot) at the belt line z, from the
     body (inner) out to the box's side (outer), its housing larger at the outer end."""
     root = [(x - 0.16, z + 0.02), (x - 0.06, z + 0.02), (x - 0.06, z + 0.10), (x - 0.16, z + 0.10)]
@@ -305,7 +350,7 @@ def _car_body(rng, k: _CarLayout, c: Material) -> list[Part]:
     yb, yt, zb = k.body - 0.03, k.body * rng.uniform(0.76, 0.82), k.belt - 0.02
     cabin = hexahedron([[k.cowl, -yb, zb], [k.glass_end, -yb, zb], [k.glass_end, yb, zb], [k.cowl, yb, zb],
                         [roof_f, -yt, top], [roof_r, -yt, top], [roof_r, yt, top], [roof_f, yt, top]])
-    roof = box(roof_r - 0.01, roof_f + 0.01, -yt - 0.01, yt + 0.01, top - 0.01, k.h)
+    roof = _box(roof_r - 0.01, roof_f + 0.01, -yt - 0.01, yt + 0.01, top - 0.01, k.h)
     pillars = [_on_side(s, *band, yb, yt, zb, top) for s in (-1, 1)
                for band in _pillars(rng, k.style, k.cowl, k.glass_end, roof_f, roof_r)]
     return [Part(lower, c), Part(cabin, GLASS), Part(roof, c), *[Part(m, c) for m in pillars]]
@@ -320,17 +365,17 @@ def _car_ends(rng, k: _CarLayout, l: float) -> list[Part]:
     hw, c = k.body + 0.005, 0.13
     for x_end, sgn, z1 in ((l / 2, 1.0, tops[0]), (-l / 2, -1.0, tops[1])):
         x = x_end - sgn * np.array([0.0, 0.0, c, 0.40 - c, 0.40, 0.40, 0.40 - c, c])
-        bumper = extrude(np.c_[x, [c - hw, hw - c, hw, hw, hw - c, c - hw, -hw, -hw]], 2, z0, z1)
+        bumper = _extrude(np.c_[x, [c - hw, hw - c, hw, hw, hw - c, c - hw, -hw, -hw]], 2, z0, z1)
         pz = (z0 + z1) / 2 if sgn > 0 else z1 + 0.03 + PLATE_H / 2
         px = x_end - 0.001 if sgn > 0 else k.back
-        parts += [Part(bumper, TRIM), Part(box(px - 0.005, px + 0.005, -PLATE_W / 2, PLATE_W / 2,
+        parts += [Part(bumper, TRIM), Part(_box(px - 0.005, px + 0.005, -PLATE_W / 2, PLATE_W / 2,
                                                 pz - PLATE_H / 2, pz + PLATE_H / 2), PLATE)]
-    parts.append(Part(box(k.front - 0.02, k.front + 0.006, 0.44 - k.body, k.body - 0.44, tops[0] - 0.01,
+    parts.append(Part(_box(k.front - 0.02, k.front + 0.006, 0.44 - k.body, k.body - 0.44, tops[0] - 0.01,
                           k.nose - 0.12), TRIM))
     for s in (-1, 1):
         y = sorted((s * (k.body - 0.42), s * (k.body - 0.14)))
-        parts += [Part(box(k.front - 0.02, k.front + 0.01, *y, k.nose - 0.15, k.nose - 0.05), HEADLIGHT),
-                  Part(box(k.back - 0.012, k.back + 0.02, *y, k.deck - 0.20, k.deck - 0.07), TAILLIGHT)]
+        parts += [Part(_box(k.front - 0.02, k.front + 0.01, *y, k.nose - 0.15, k.nose - 0.05), HEADLIGHT),
+                  Part(_box(k.back - 0.012, k.back + 0.02, *y, k.deck - 0.20, k.deck - 0.07), TAILLIGHT)]
     return parts
 
 
@@ -341,7 +386,7 @@ def _car_sides(k: _CarLayout, c: Material) -> list[Part]:
     parts = []
     for s in (-1, 1):
         face = s * (k.body + 0.006)
-        parts += [Part(box(ax_r + r + 0.04, ax_f - r - 0.04, s * (k.body - 0.05), s * (k.body + 0.004),
+        parts += [Part(_box(ax_r + r + 0.04, ax_f - r - 0.04, s * (k.body - 0.05), s * (k.body + 0.004),
                            k.sill, k.sill + 0.09), TRIM),
                   Part(_mirror(s, k.cowl, k.body - 0.04, k.wing, k.belt), c)]
         for ax in (ax_f, ax_r):
@@ -384,22 +429,22 @@ def _van(rng, c: Material, dims) -> list[Part]:
     b = BODY_SHARE / 2
     nose = rng.uniform(0.28, 0.36)
     body = prism_xz([[0.5, 0.14], [0.5, 0.45], [nose, 0.52], [-0.5, 0.52], [-0.5, 0.14]], -b, b)
-    upper = box(-0.5, nose - 0.10, -b, b, 0.50, 1.0)
+    upper = _box(-0.5, nose - 0.10, -b, b, 0.50, 1.0)
     shield = hull([[nose, 0.04 - b, 0.52], [nose, b - 0.04, 0.52], [nose - 0.10, 0.04 - b, 0.50],
                    [nose - 0.10, b - 0.04, 0.50], [nose - 0.10, 0.06 - b, 0.86],
                    [nose - 0.10, b - 0.06, 0.86]])
-    side_windows = [box(-0.15, nose - 0.11, s * b - 0.005, s * b + 0.005, 0.60, 0.82) for s in (-1, 1)]
+    side_windows = [_box(-0.15, nose - 0.11, s * b - 0.005, s * b + 0.005, 0.60, 0.82) for s in (-1, 1)]
     r = 0.16
     return [Part(body, c), Part(upper, c), Part(shield, GLASS),
             *[Part(m, GLASS) for m in side_windows], *_wheels((0.32, -0.32), b, r, 0.11, r * h / l),
-            *[Part(box(sgn * 0.47, sgn * 0.503, -b - 0.004, b + 0.004, 0.10, 0.25), TRIM)
+            *[Part(_box(sgn * 0.47, sgn * 0.503, -b - 0.004, b + 0.004, 0.10, 0.25), TRIM)
               for sgn in (-1, 1)],  # bumpers
-            *[Part(box(nose - 0.16, nose - 0.11, s * (b - 0.02), s * 0.5, 0.55, 0.68), TRIM)
+            *[Part(_box(nose - 0.16, nose - 0.11, s * (b - 0.02), s * 0.5, 0.55, 0.68), TRIM)
               for s in (-1, 1)],  # mirrors
-            Part(box(0.503, 0.509, -0.11, 0.11, 0.14, 0.21), PLATE),
-            Part(box(-0.509, -0.503, -0.11, 0.11, 0.14, 0.21), PLATE),
-            *[Part(box(0.49, 0.503, s * 0.30, s * 0.42, 0.38, 0.44), HEADLIGHT) for s in (-1, 1)],
-            *[Part(box(-0.503, -0.49, s * 0.32, s * 0.42, 0.30, 0.45), TAILLIGHT)
+            Part(_box(0.503, 0.509, -0.11, 0.11, 0.14, 0.21), PLATE),
+            Part(_box(-0.509, -0.503, -0.11, 0.11, 0.14, 0.21), PLATE),
+            *[Part(_box(0.49, 0.503, s * 0.30, s * 0.42, 0.38, 0.44), HEADLIGHT) for s in (-1, 1)],
+            *[Part(_box(-0.503, -0.49, s * 0.32, s * 0.42, 0.30, 0.45), TAILLIGHT)
               for s in (-1, 1)]]
 
 
@@ -407,39 +452,64 @@ def _truck(rng, c: Material, dims) -> list[Part]:
     h, _, l = dims
     cab_len = rng.uniform(0.17, 0.24)
     front = 0.5
-    cab = box(front - cab_len, front, -0.5, 0.5, 0.12, 0.92)
-    shield = box(front - 0.004, front + 0.004, -0.44, 0.44, 0.60, 0.86)
+    cab = _box(front - cab_len, front, -0.5, 0.5, 0.12, 0.92)
+    shield = _box(front - 0.004, front + 0.004, -0.44, 0.44, 0.60, 0.86)
     cargo_color = paint(rng.uniform(0.5, 0.95, 3))
-    cargo = box(-0.5, front - cab_len - 0.02, -0.5, 0.5, 0.14, 1.0)
-    chassis = box(-0.48, front - 0.02, -0.35, 0.35, 0.08, 0.16)
+    cargo = _box(-0.5, front - cab_len - 0.02, -0.5, 0.5, 0.14, 1.0)
+    chassis = _box(-0.48, front - 0.02, -0.35, 0.35, 0.08, 0.16)
     r = 0.15  # 315/80 R22.5 tyres: 0.54 m, 0.16 of a 3.25 m truck
     xs = (front - cab_len * 0.5, -0.28, -0.38)
     return [Part(cab, c), Part(shield, GLASS), Part(cargo, cargo_color), Part(chassis, FRAME),
             *_wheels(xs, 0.5, r, 0.10, r * h / l),
-            Part(box(0.5, 0.503, -0.08, 0.08, 0.15, 0.20), PLATE),
-            *[Part(box(0.5, 0.503, s * 0.30, s * 0.45, 0.22, 0.28), HEADLIGHT) for s in (-1, 1)],
-            *[Part(box(-0.503, -0.5, s * 0.30, s * 0.45, 0.16, 0.22), TAILLIGHT)
+            Part(_box(0.5, 0.503, -0.08, 0.08, 0.15, 0.20), PLATE),
+            *[Part(_box(0.5, 0.503, s * 0.30, s * 0.45, 0.22, 0.28), HEADLIGHT) for s in (-1, 1)],
+            *[Part(_box(-0.503, -0.5, s * 0.30, s * 0.45, 0.16, 0.22), TAILLIGHT)
               for s in (-1, 1)]]
 
 
 def _bus(rng, c: Material, dims) -> list[Part]:
     h, _, l = dims
-    body = box(-0.5, 0.5, -0.5, 0.5, 0.10, 1.0)
-    band = [box(-0.45, 0.42, s * 0.5 - 0.004, s * 0.5 + 0.004, 0.45, 0.85) for s in (-1, 1)]
-    shield = box(0.5, 0.504, -0.45, 0.45, 0.35, 0.90)
+    body = _box(-0.5, 0.5, -0.5, 0.5, 0.10, 1.0)
+    band = [_box(-0.45, 0.42, s * 0.5 - 0.004, s * 0.5 + 0.004, 0.45, 0.85) for s in (-1, 1)]
+    shield = _box(0.5, 0.504, -0.45, 0.45, 0.35, 0.90)
     r = 0.16
     return [Part(body, c), *[Part(m, GLASS) for m in band], Part(shield, GLASS),
             *_wheels((0.32, -0.25), 0.5, r, 0.11, r * h / l),
-            *[Part(box(0.5, 0.505, s * 0.30, s * 0.45, 0.15, 0.22), HEADLIGHT) for s in (-1, 1)],
-            *[Part(box(-0.505, -0.5, s * 0.30, s * 0.45, 0.15, 0.25), TAILLIGHT)
+            *[Part(_box(0.5, 0.505, s * 0.30, s * 0.45, 0.15, 0.22), HEADLIGHT) for s in (-1, 1)],
+            *[Part(_box(-0.505, -0.5, s * 0.30, s * 0.45, 0.15, 0.25), TAILLIGHT)
               for s in (-1, 1)]]
 
 
-def _limb(a, b, r) -> trimesh.Trimesh:
+def _limb(a, b, r) -> Shape:
     """A box-section limb from point a to point b (closed convex hull)."""
-    a, b = np.asarray(a, float), np.asarray(b, float)
+    return _limb_at(tuple(np.asarray(a, float).tolist()), tuple(np.asarray(b, float).tolist()), float(r))
+
+
+@functools.lru_cache(maxsize=256)
+def _limb_at(a: tuple, b: tuple, r: float) -> Shape:
+    """_limb by value: a cyclist's frame and legs are the same on every bike (qhull, 0.1 ms each)."""
+    a, b = np.array(a), np.array(b)
     offs = np.array([[dx, dy, 0.0] for dx in (-r, r) for dy in (-r, r)])
-    return hull(np.concatenate([a + offs, b + offs]))
+    shape = hull(np.concatenate([a + offs, b + offs]))
+    shape.vertices.flags.writeable = shape.faces.flags.writeable = False  # shared by every caller
+    return shape
+
+
+@functools.cache
+def _head_template() -> trimesh.Trimesh:
+    """The head before it is placed: the same for every person."""
+    head = trimesh.creation.icosphere(subdivisions=1, radius=0.07)
+    head.apply_scale([1.0, 0.85, 1.15])
+    return head
+
+
+def _head(centre) -> Shape:
+    """The head at `centre`: the template moved as trimesh's apply_translation moves it (the
+    same homogeneous product, so the same bits), without a trimesh per person."""
+    head = _head_template()
+    move = np.eye(4)
+    move[:3, 3] = np.asarray(centre, dtype=np.float64)
+    return Shape(trimesh.transformations.transform_points(head.vertices, move), head.faces)
 
 
 def _person(rng, clothes: Material, skin: Material, stride: float, lean: float = 0.0,
@@ -471,10 +541,7 @@ def _person(rng, clothes: Material, skin: Material, stride: float, lean: float =
         else:
             hand = top + [-s * stride * 0.3, s * 0.03, -0.33]
         parts.append(Part(_limb(top, hand, 0.035), clothes))
-    head = trimesh.creation.icosphere(subdivisions=1, radius=0.07)
-    head.apply_scale([1.0, 0.85, 1.15])
-    head.apply_translation(shoulder + [0.01, 0, 0.09])
-    parts.append(Part(head, skin))
+    parts.append(Part(_head(shoulder + [0.01, 0, 0.09]), skin))
     return parts
 
 
@@ -498,7 +565,7 @@ def _cyclist(rng, c: Material) -> list[Part]:
     for a, b in ((np.array([xb, 0, r]), crank), (crank, seat), (seat, np.array([xb, 0, r])),
                  (crank, bar), (bar, np.array([xf, 0, r])), (seat, bar)):
         parts.append(Part(_limb(a, b, 0.015), FRAME))
-    parts.append(Part(box(0.38, 0.42, -0.22, 0.22, 0.60, 0.64), FRAME))
+    parts.append(Part(_box(0.38, 0.42, -0.22, 0.22, 0.60, 0.64), FRAME))
     parts += _person(rng, clothes, skin, 0.0, lean=rng.uniform(0.0, 0.08), sitting_on_bike=True)
     return parts
 

@@ -134,21 +134,53 @@ def _textured(kind: str, variant: int) -> pyrender.MetallicRoughnessMaterial:
     return _TEXTURED[key]
 
 
+def _shared(parts: list[Part]) -> tuple[np.ndarray, np.ndarray]:
+    """(V, 3) vertices and (F, 3) faces of all parts in part order, the faces indexing the joint
+    vertices (numpy, no trimesh caches)."""
+    vs = [np.asarray(p.mesh.vertices).view(np.ndarray) for p in parts]
+    fs = [np.asarray(p.mesh.faces).view(np.ndarray) for p in parts]
+    return np.concatenate(vs), _joint_faces(fs, [len(v) for v in vs])
+
+
+def _joint_faces(faces: list[np.ndarray], n_vertices: list[int]) -> np.ndarray:
+    """Faces of several meshes indexing their concatenated vertices."""
+    first = np.cumsum([0, *n_vertices[:-1]])
+    return np.concatenate(faces) + np.repeat(first, [len(f) for f in faces])[:, None]
+
+
 def _triangles(parts: list[Part]) -> tuple[np.ndarray, np.ndarray]:
-    """(F, 3, 3) triangles and (F, 3) unit normals of all parts (numpy, no trimesh caches)."""
-    tris = np.concatenate([np.asarray(p.mesh.vertices).view(np.ndarray)[np.asarray(p.mesh.faces).view(np.ndarray)]
-                           for p in parts])
+    """(F, 3, 3) triangles and (F, 3) unit normals of all parts."""
+    return _faceted(*_shared(parts))
+
+
+def _faceted(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(F, 3, 3) triangles and (F, 3) unit normals of a mesh."""
+    tris = vertices[faces]
+    return tris, _normals(tris)
+
+
+def _normals(tris: np.ndarray) -> np.ndarray:
+    """(F, 3) unit normals of (F, 3, 3) triangles."""
     n = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
     n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
-    return tris, n
+    return n
 
 
-def _primitive(tris: np.ndarray, normals: np.ndarray, rgba: np.ndarray, material,
+def _split_faceted(meshes: list[tuple[np.ndarray, np.ndarray]]) -> list[tuple[np.ndarray, np.ndarray]]:
+    """_faceted of each mesh, computed for all at once (elementwise and per-row work: the same
+    bits as one by one)."""
+    tris = np.concatenate([v[f] for v, f in meshes])
+    ends = np.cumsum([len(f) for _, f in meshes])[:-1]
+    return list(zip(np.split(tris, ends), np.split(_normals(tris), ends)))
+
+
+def _primitive(tris: np.ndarray, normals: np.ndarray | None, rgba: np.ndarray, material,
                uv: np.ndarray | None = None) -> pyrender.Primitive:
-    """Flat faces: vertices unshared per face, a colour per face."""
+    """Flat faces: vertices unshared per face, a colour per face. Normals only where pyrender
+    lights per pixel (None under its flat shader, which never reads them: less to upload)."""
     return pyrender.Primitive(
         positions=tris.reshape(-1, 3).astype(np.float32),
-        normals=np.repeat(normals, 3, axis=0).astype(np.float32),
+        normals=None if normals is None else np.repeat(normals, 3, axis=0).astype(np.float32),
         color_0=np.repeat(rgba, 3, axis=0).astype(np.float32),
         texcoord_0=None if uv is None else uv.reshape(-1, 2).astype(np.float32), material=material)
 
@@ -210,6 +242,11 @@ class _Shader:
         rgb = np.clip(lin / self.headroom, 0.0, 1.0) ** (1 / 2.2)
         return np.c_[rgb, np.clip(rest, 0.0, 1.0) ** (1 / 2.2)]
 
+    def gl_normals(self, normals: np.ndarray) -> np.ndarray | None:
+        """The normals pyrender needs: per-pixel lighting ('pbr') reads them, the flat shader of
+        the other looks does not."""
+        return normals if self.mode == "pbr" else None
+
     def _mirror(self, centres: np.ndarray, normals: np.ndarray) -> np.ndarray:
         """Radiance a clear coat or pane reflects towards the eye: sky or ground, and the sun."""
         view = self.eye - centres
@@ -239,7 +276,8 @@ def _actor_meshes(bodies: list[tuple[list[Part], np.ndarray, bool]],
     vectorised pass in the world frame; and their triangles (world frame) as shadow casters."""
     if not bodies:
         return [], Occluders(np.zeros((0, 3, 3), np.float32), np.zeros(0, np.float32))
-    geo = [_triangles(parts) for parts, _, _ in bodies]
+    shared = [_shared(parts) for parts, _, _ in bodies]
+    geo = _split_faceted(shared)
     world_tris = np.concatenate([t @ pose[:3, :3].T + pose[:3, 3] for (t, _), (_, pose, _) in zip(geo, bodies)])
     world_n = np.concatenate([n @ pose[:3, :3].T for (_, n), (_, pose, _) in zip(geo, bodies)])
     parts = [p for b, _, _ in bodies for p in b]
@@ -248,8 +286,11 @@ def _actor_meshes(bodies: list[tuple[list[Part], np.ndarray, bool]],
     else:
         rgba = shader.colors(parts, world_tris, world_n, False)
     ends = np.cumsum([len(t) for t, _ in geo])[:-1]
-    return ([pyrender.Mesh([_primitive(t, n, c, _PLAIN)]) for (t, n), c in zip(geo, np.split(rgba, ends))],
-            Occluders.of_parts(parts, world_tris))
+    world_v = np.concatenate([v @ pose[:3, :3].T + pose[:3, 3] for (v, _), (_, pose, _) in zip(shared, bodies)])
+    faces = _joint_faces([f for _, f in shared], [len(v) for v, _ in shared])
+    return ([pyrender.Mesh([_primitive(t, shader.gl_normals(n), c, _PLAIN)])
+             for (t, n), c in zip(geo, np.split(rgba, ends))],
+            Occluders.of_parts(parts, world_tris, (world_v, faces)))
 
 
 def _lamp_mesh(part: Part, material) -> pyrender.Mesh:
@@ -291,11 +332,12 @@ def _static_mesh(parts: list[Part], shader: _Shader, world: World) -> tuple[pyre
     rng = factor_rng(world.seed, world.frame_index, "appearance")
     look = world.appearance
     gain = np.exp(rng.normal(0.0, look.colour_jitter, (len(parts), 3)))
-    tris, normals = _triangles(parts)
+    vertices, faces = _shared(parts)
+    tris, normals = _faceted(vertices, faces)
     rgba = shader.colors(parts, tris, normals, False, gain)
-    casters = Occluders.of_parts(parts, tris)
+    casters = Occluders.of_parts(parts, tris, (vertices, faces))
     if shader.mode != "lit" or not look.textures:
-        return pyrender.Mesh([_primitive(tris, normals, rgba, _PLAIN)]), casters
+        return pyrender.Mesh([_primitive(tris, shader.gl_normals(normals), rgba, _PLAIN)]), casters
     owner = np.repeat(np.arange(len(parts)), [len(p.mesh.faces) for p in parts])
     prims, plain = [], np.ones(len(tris), bool)
     for i, part in enumerate(parts):
@@ -318,10 +360,10 @@ def _static_mesh(parts: list[Part], shader: _Shader, world: World) -> tuple[pyre
             else:
                 uv = _planar_uv(tris[sel], normals[sel], tile, rng.uniform(0, 1, 2))
             colour = rgba[sel] * np.array([textures.MAX_GAIN] * 3 + [1.0])
-            prims.append(_primitive(tris[sel], normals[sel], colour, _textured(kind, variant), uv))
+            prims.append(_primitive(tris[sel], None, colour, _textured(kind, variant), uv))  # lit: flat
             plain &= ~sel
     if plain.any():
-        prims.append(_primitive(tris[plain], normals[plain], rgba[plain], _PLAIN))
+        prims.append(_primitive(tris[plain], None, rgba[plain], _PLAIN))
     return pyrender.Mesh(prims), casters
 
 
@@ -358,11 +400,10 @@ def _sky_dome(world: World, headroom: float) -> pyrender.Mesh:
     quads = np.stack([i * 49 + j, i * 49 + j + 1, (i + 1) * 49 + j + 1, (i + 1) * 49 + j], -1).reshape(-1, 4)
     faces = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
     tris, uv = P.reshape(-1, 3)[faces], UV.reshape(-1, 2)[faces]
-    normals = -tris.mean(axis=1) / _DOME_RADIUS
     tex = pyrender.Texture(source=_sky_texture(rng, world.appearance.cloud_cover, headroom),
                            source_channels="RGB")
     mat = pyrender.MetallicRoughnessMaterial(baseColorTexture=tex, metallicFactor=0.0, doubleSided=True)
-    return pyrender.Mesh([_primitive(tris, normals, np.ones((len(tris), 4)), mat, uv)])
+    return pyrender.Mesh([_primitive(tris, None, np.ones((len(tris), 4)), mat, uv)])  # lit looks: flat
 
 
 def _seg_code(actor_id: int) -> tuple[int, int, int]:
@@ -441,9 +482,13 @@ def shade(world: World, color: np.ndarray, depth: np.ndarray, casters: Occluders
     rig = world.rig
     depth_of_shadow = sun_shadow(casters, depth, rig.intrinsics(), rig.cam2_from_world(),
                                  _to_sun(world.light), color[..., 3] < 250)
-    rest = color[..., 3:4].astype(np.float32) / 255.0 * _shade_tint(world.light.time)
-    factor = 1.0 - depth_of_shadow[..., None] * (1.0 - rest)
-    return np.clip(np.round(rgb * factor), 0, 255).astype(np.uint8)
+    # Only shadowed pixels change (elsewhere the factor is exactly 1): the same arithmetic on them.
+    out = np.array(rgb)
+    shadowed = depth_of_shadow != 0
+    rest = color[shadowed][:, 3:4].astype(np.float32) / 255.0 * _shade_tint(world.light.time)
+    factor = 1.0 - depth_of_shadow[shadowed][:, None] * (1.0 - rest)
+    out[shadowed] = np.clip(np.round(rgb[shadowed] * factor), 0, 255).astype(np.uint8)
+    return out
 
 
 def render(world: World) -> RenderOutput:

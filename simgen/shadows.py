@@ -34,17 +34,37 @@ class Occluders:
 
     tris: np.ndarray  # (F, 3, 3) float32
     depth: np.ndarray  # (F,) float32, 1 - porosity ** 2
+    # The same triangles as shared vertices and faces (vertices[faces] equals tris bit for bit),
+    # where known: embreex copies into Embree one Python-level read per coordinate, and shared
+    # vertices are about a fifth of the triangles' corners.
+    vertices: np.ndarray | None = None  # (V, 3) float32
+    faces: np.ndarray | None = None  # (F, 3) int32
 
     @staticmethod
-    def of_parts(parts: list[Part], tris: np.ndarray) -> Occluders:
-        """The parts' triangles (already in the world frame, in part order)."""
+    def of_parts(parts: list[Part], tris: np.ndarray,
+                 shared: tuple[np.ndarray, np.ndarray] | None = None) -> Occluders:
+        """The parts' triangles (already in the world frame, in part order). `shared`, if given:
+        the same triangles as (vertices, faces), faces indexing the vertices; kept only where
+        they give `tris` exactly."""
         depth = np.repeat([1.0 - p.material.porosity ** 2 for p in parts],
                           [len(p.mesh.faces) for p in parts]).astype(np.float32)
-        return Occluders(np.asarray(tris, np.float32).reshape(-1, 3, 3), depth)
+        tris = np.asarray(tris, np.float32).reshape(-1, 3, 3)
+        if shared is None:
+            return Occluders(tris, depth)
+        vertices, faces = np.asarray(shared[0], np.float32), np.asarray(shared[1], np.int32)
+        if faces.shape != (len(tris), 3) or not np.array_equal(vertices[faces], tris):
+            return Occluders(tris, depth)
+        return Occluders(tris, depth, vertices, faces)
 
     @staticmethod
     def join(a: Occluders, b: Occluders) -> Occluders:
-        return Occluders(np.concatenate([a.tris, b.tris]), np.concatenate([a.depth, b.depth]))
+        if not len(a.tris) or not len(b.tris):
+            return b if not len(a.tris) else a
+        if a.faces is None or b.faces is None:
+            return Occluders(np.concatenate([a.tris, b.tris]), np.concatenate([a.depth, b.depth]))
+        return Occluders(np.concatenate([a.tris, b.tris]), np.concatenate([a.depth, b.depth]),
+                         np.concatenate([a.vertices, b.vertices]),
+                         np.concatenate([a.faces, b.faces + np.int32(len(a.vertices))]))
 
 
 def sun_shadow(occluders: Occluders, depth: np.ndarray, K: np.ndarray, cam2_from_world: np.ndarray,
@@ -66,7 +86,10 @@ def sun_shadow(occluders: Occluders, depth: np.ndarray, K: np.ndarray, cam2_from
                     np.ones_like(zc)])
     points = (np.linalg.inv(cam2_from_world) @ cam)[:3].T
     scene = EmbreeScene()
-    TriangleMesh(scene, occluders.tris)
+    if occluders.faces is not None:
+        TriangleMesh(scene, occluders.vertices, occluders.faces)
+    else:
+        TriangleMesh(scene, occluders.tris)
     origins = (points + T_NEAR * to_sun).astype(np.float32)
     dirs = np.broadcast_to(to_sun.astype(np.float32), origins.shape).copy()
     prim = scene.run(origins, dirs)

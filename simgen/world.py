@@ -174,11 +174,17 @@ class World:
 
 
 def fit_parts(parts: list[Part], h: float, w: float, l: float) -> list[Part]:
-    """Scale and shift parts so their joint extent is exactly l x w x h, origin at the bottom centre."""
-    allv = np.concatenate([p.mesh.vertices for p in parts])
+    """Scale and shift parts so their joint extent is exactly l x w x h, origin at the bottom centre.
+
+    The parts' meshes may be trimeshes or anything with vertices and faces (simgen.meshes.Shape);
+    the result holds trimeshes. All vertices are moved in one array operation: elementwise, so
+    every vertex gets the bits it would get part by part."""
+    verts = [np.asarray(p.mesh.vertices) for p in parts]
+    allv = np.concatenate(verts)
     lo, hi = allv.min(axis=0), allv.max(axis=0)
     scale = np.array([l, w, h]) / (hi - lo)
     shift = np.array([l / 2, w / 2, 0.0])
-    return [Part(trimesh.Trimesh((np.asarray(p.mesh.vertices) - lo) * scale - shift,
-                                 np.asarray(p.mesh.faces), process=False), p.material)
-            for p in parts]
+    fitted = (allv - lo) * scale - shift
+    ends = np.cumsum([len(v) for v in verts]).tolist()
+    return [Part(trimesh.Trimesh(fitted[a:b], np.asarray(p.mesh.faces), process=False), p.material)
+            for p, a, b in zip(parts, [0, *ends[:-1]], ends)]

@@ -122,13 +122,15 @@ def build_target(world: World, spec: LidarSpec) -> Target:
     """Concatenate every triangle in world frame (actors at their placement poses): static
     parts, then still actors, then moving actors, so one comparison finds hits to correct."""
     t_place = placement_times(world, spec)
-    verts, faces, actor, slot, mat = [], [], [], [], []
+    verts, faces, actor, slot, mat, counts = [], [], [], [], [], []
     mats: dict = {}
     panes: list[tuple[int, int, int, int]] = []  # glass parts: first triangle, count, first vertex, count
     nv = 0
     nf_total = 0
 
     def add(mesh, transform, aid: int, s: int, material) -> None:
+        """One part: its vertices and faces; its actor, slot and material once, expanded to its
+        triangles after the loop (one np.repeat, not three np.full per part)."""
         nonlocal nv, nf_total
         v = _arr(mesh.vertices)
         if transform is not None:
@@ -137,9 +139,10 @@ def build_target(world: World, spec: LidarSpec) -> Target:
         verts.append(v)
         faces.append(f)
         nf = len(f)
-        actor.append(np.full(nf, aid, np.int32))
-        slot.append(np.full(nf, s, np.int32))
-        mat.append(np.full(nf, mats.setdefault(material, len(mats)), np.int16))
+        counts.append(nf)
+        actor.append(aid)
+        slot.append(s)
+        mat.append(mats.setdefault(material, len(mats)))
         if material.transmittance > 0:
             panes.append((nf_total, nf, nv, len(v)))
         nv += len(v)
@@ -163,7 +166,7 @@ def build_target(world: World, spec: LidarSpec) -> Target:
                 add(part.mesh, pose, a.id, i, part.material)
 
     scene, v_all, f_all, inv_ng = _embree_scene(verts, faces)
-    cat = (lambda xs, dt: np.concatenate(xs) if xs else np.zeros(0, dt))
+    cat = (lambda xs, dt: np.repeat(np.array(xs, dt), counts))
     materials = tuple(mats)
     table = (lambda f: np.array([f(m) for m in materials], np.float32).reshape(-1))
     tri_mat = cat(mat, np.int16)
