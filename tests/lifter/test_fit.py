@@ -109,3 +109,24 @@ def test_no_returns_falls_back_to_image_only_on_the_road():
         np.testing.assert_allclose(lf.location, sol.location)
         np.testing.assert_allclose(lf.location, b[:3], atol=1e-3)
         assert lf.quality == 0.2
+
+
+@pytest.mark.parametrize("box7", [[3.0, 1.65, 20.0, 1.5, 1.7, 4.2, 0.3],
+                                  [-6.0, 1.9, 42.0, 1.9, 1.9, 5.1, -2.0],
+                                  [1.0, 1.4, 9.0, 1.45, 1.8, 4.5, np.pi / 2]])
+def test_height_from_the_projected_top_edge_is_exact(box7):
+    """The 2D box is the 3D box's projection: its top, with the footprint and bottom known, gives
+    the height back to rounding, whatever height the fit started from."""
+    from kitti.boxes import project_boxes
+    from kitti.calib import Calibration
+    from lifter.fit import height_from_top
+
+    calib = Calibration.kitti_default()
+    b = np.array(box7, float)
+    top = project_boxes(b[None], calib, IMAGE_SIZE)[0][1]
+    dims = b[[3, 4, 5]].copy()
+    for start in (0.8, 1.0, 1.3):
+        dims[0] = b[3] * start
+        assert height_from_top(b[:3], dims, b[6], top, calib.P(2)) == pytest.approx(b[3], abs=1e-9)
+    dims[0] = b[3] * 0.4  # the top edge would need 2.5 x the fitted height: kept as it was
+    assert height_from_top(b[:3], dims, b[6], top, calib.P(2)) == dims[0]
