@@ -49,6 +49,7 @@ from .placement import (
     MAX_GROW_W,
     SIGMA_LENGTH,
     SIGMA_SIDE_PX,
+    height_from_top,
     length_from_sides,
     percentile,
     road_y,
@@ -72,7 +73,6 @@ ROOF_SEEN = 0.75       # highest return above this share of the prior height: th
 ROOF_GAP = 0.2         # m, the top lies at most this far above the highest roof return (64 beams:
                        # 90 % within 0.14 m on the testbed's cars; sparse scans a little more)
 LOW_RETURNS = 0.4      # share of the height: no return below it, and the face may be unseen
-HEIGHT_RANGE = (0.5, 1.6)  # the height from the 2D box's top may be this far from the fitted one
 IMAGE_DEPTH_K = 0.15   # returns this many image-depth sigmas behind the road contact are
                        # bonnet, boot or windows: the image's depth is taken
 SIGMA_YAW_PRIOR = np.deg2rad(20.0)  # the network's orientation, against the 2D box's evidence
@@ -188,26 +188,6 @@ def _fallback(box: Box2D, prior: Prior, view: _View, plane: np.ndarray) -> Lifte
     sol = solve_from_alpha(prior.dims, prior.alpha, box.bbox, view.calib, view.image_size, plane,
                            view.cam, cut_ok=True, contact=contact_of(box.type, view.outline))
     return Lifted(sol.location, sol.rotation_y, np.asarray(prior.dims, dtype=float), quality=0.2)
-
-
-def height_from_top(T: np.ndarray, dims: np.ndarray, ry: float, top: float, P: np.ndarray) -> float:
-    """The height that puts the box's projected top edge at the 2D box's top `top` (step 5b).
-
-    A 2D box that is the projection of the 3D box (KITTI's labels, `outline` "box") has its top
-    at the highest-projecting of the four top corners. With the footprint and the bottom fixed,
-    each corner reaches row `top` at one height y_i (P's row equation, linear in y), and the
-    projected top reaches it at the lowest of those corners' heights: y = max_i y_i (rect y
-    points down). Kept only within HEIGHT_RANGE x the current height (a 2D box cut at the top,
-    or an object bigger than its box, says nothing about the height)."""
-    h, w, l = dims
-    c, s = np.cos(ry), np.sin(ry)
-    corners = np.array([[l / 2, w / 2], [l / 2, -w / 2], [-l / 2, w / 2], [-l / 2, -w / 2]])
-    x = T[0] + corners[:, 0] * c + corners[:, 1] * s
-    z = T[2] - corners[:, 0] * s + corners[:, 1] * c
-    num = top * (P[2, 0] * x + P[2, 2] * z + P[2, 3]) - (P[1, 0] * x + P[1, 2] * z + P[1, 3])
-    y_top = float(np.max(num / (P[1, 1] - top * P[2, 1])))
-    h_new = T[1] - y_top
-    return h_new if HEIGHT_RANGE[0] * h <= h_new <= HEIGHT_RANGE[1] * h else float(h)
 
 
 def _box_for_yaw(ry: float, obj: _Returns, prior: Prior, small: bool, box: Box2D, view: _View,

@@ -83,10 +83,11 @@ def _road(f: Frame, pts=None):
 def _mono_box(box: Box2D, prior: Prior, calib: Calibration, size, road, outline: str) -> Lifted:
     """Deep3DBox with the road: the 2D box's sides plus the bottom centre on the road plane found
     under the box's bottom edge; a box cut on too many sides by the border may also use its
-    border sides."""
+    border sides. Where the 2D box is the 3D box's projection, its top then gives the height."""
     import numpy as np
 
     from .mono import contact_of, mono_quality, solve_weighing_alpha
+    from .placement import height_from_top
     from .road import plane_under
     from .types import Lifted
 
@@ -101,7 +102,11 @@ def _mono_box(box: Box2D, prior: Prior, calib: Calibration, size, road, outline:
                                    cut_ok=True, contact=contact)
         cut = 0.6
     quality = 0.5 * cut * mono_quality(sol, calib.P(2)[0, 0])
-    return Lifted(sol.location, sol.rotation_y, np.asarray(prior.dims, dtype=float), quality)
+    dims = np.asarray(prior.dims, dtype=float).copy()
+    if outline == "box" and box.bbox[1] > 1.0 and box.bbox[3] < size[1] - 2.0:
+        # the 2D box is the 3D box's projection: its top fixes the height on the placed footprint
+        dims[0] = height_from_top(sol.location, dims, sol.rotation_y, box.bbox[1], calib.P(2))
+    return Lifted(sol.location, sol.rotation_y, dims, quality)
 
 
 def _mono(f: Frame) -> list[Lifted]:

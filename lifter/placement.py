@@ -272,3 +272,27 @@ def length_from_sides(T: np.ndarray, h: float, w: float, l: float, ry: float, sl
             + side_misfit(boxes, P, bbox, width) / SIGMA_SIDE_PX ** 2)
     best = np.argmin(cost)
     return boxes[best, :3].copy(), boxes[best, 5]
+
+
+# the height from a 2D box's top may be this far from the fitted one (else the box says nothing)
+HEIGHT_RANGE = (0.5, 1.6)
+
+
+def height_from_top(T: np.ndarray, dims: np.ndarray, ry: float, top: float, P: np.ndarray) -> float:
+    """The height that puts the box's projected top edge at the 2D box's top `top` (`fit`'s step 5b, `mono`).
+
+    A 2D box that is the projection of the 3D box (KITTI's labels, `outline` "box") has its top
+    at the highest-projecting of the four top corners. With the footprint and the bottom fixed,
+    each corner reaches row `top` at one height y_i (P's row equation, linear in y), and the
+    projected top reaches it at the lowest of those corners' heights: y = max_i y_i (rect y
+    points down). Kept only within HEIGHT_RANGE x the current height (a 2D box cut at the top,
+    or an object bigger than its box, says nothing about the height)."""
+    h, w, l = dims
+    c, s = np.cos(ry), np.sin(ry)
+    corners = np.array([[l / 2, w / 2], [l / 2, -w / 2], [-l / 2, w / 2], [-l / 2, -w / 2]])
+    x = T[0] + corners[:, 0] * c + corners[:, 1] * s
+    z = T[2] - corners[:, 0] * s + corners[:, 1] * c
+    num = top * (P[2, 0] * x + P[2, 2] * z + P[2, 3]) - (P[1, 0] * x + P[1, 2] * z + P[1, 3])
+    y_top = float(np.max(num / (P[1, 1] - top * P[2, 1])))
+    h_new = T[1] - y_top
+    return h_new if HEIGHT_RANGE[0] * h <= h_new <= HEIGHT_RANGE[1] * h else float(h)

@@ -119,7 +119,7 @@ def test_height_from_the_projected_top_edge_is_exact(box7):
     the height back to rounding, whatever height the fit started from."""
     from kitti.boxes import project_boxes
     from kitti.calib import Calibration
-    from lifter.fit import height_from_top
+    from lifter.placement import height_from_top
 
     calib = Calibration.kitti_default()
     b = np.array(box7, float)
