@@ -67,9 +67,11 @@ def box_outline(data: str | Path, detections: Path | None, ids: list[str] | None
     the generator wrote the rendered silhouette until it took up KITTI's convention (2.4-2.7 %:
     the lowest point is a tyre's contact, not the box's bottom corner). The median over the
     dataset's first untruncated vehicles decides, at OUTLINE_GAP. Detections outline what the
-    detector was trained on: the shipped FlexiNet learnt the generator's silhouettes."""
+    detector was trained on: KITTI's boxes for a detector trained on KITTI, and the generator's
+    since it took up KITTI's convention, on which the shipped FlexiNet (stage 7,
+    `detector/weights/README.md`) was trained."""
     if detections is not None:
-        return "silhouette"
+        return "box"
     ds = KittiDataset(data)
     gaps: list[float] = []
     for fid in (ids if ids is not None else ds.ids()):
