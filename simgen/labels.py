@@ -152,13 +152,12 @@ def box_outline(lo: np.ndarray, hi: np.ndarray, cam_from_actor: np.ndarray,
     return _convex_part_outline(v, _BOX_EDGES, K)
 
 
-def _label_pose(pose: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+def _label_pose(pose: np.ndarray, centre: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     """The pose of the labelled box: the actor's own, or for a vehicle tilted with the road
-    (simgen.relief) the upright box KITTI's label can say (yaw only) about the same bottom centre,
-    so the 2D box stays the projection of the label's 3D box."""
+    (simgen.relief) the upright box KITTI's label can say (yaw only) about the same bottom
+    centre (world), so the 2D box stays the projection of the label's 3D box."""
     if pose[2, 2] == 1.0:
         return pose
-    centre = pose @ np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2], 1.0])
     yaw = np.arctan2(pose[1, 0], pose[0, 0])
     c, s = np.cos(yaw), np.sin(yaw)
     upright = np.eye(4)
@@ -200,7 +199,7 @@ def derive(world: World, instance: np.ndarray, rules: LabelRules) -> tuple[list[
                                      "out_of_view"))
             continue
         sil_bbox = _clipped_bounds(inside, image, W, H)
-        bbox = _clipped_bounds(box_outline(lo, hi, cam @ _label_pose(actor.pose, lo, hi), K), image, W, H)
+        bbox = _clipped_bounds(box_outline(lo, hi, cam @ _label_pose(actor.pose, centre, lo, hi), K), image, W, H)
         trunc = float(np.clip(1.0 - inside.area / sil.area, 0.0, 1.0))
         vis_px = int(counts[actor.id]) if actor.id < len(counts) else 0
         share = float(min(1.0, vis_px / inside.area))
