@@ -50,10 +50,14 @@ def ring_median(key: str, pick: Callable[[np.ndarray], float]) -> Callable[[Data
     return value
 
 
-def car_points(lo: float, hi: float) -> Callable[[DatasetStats], float]:
+def car_points(lo: float, hi: float, visible: bool = False) -> Callable[[DatasetStats], float]:
+    """Median returns inside the Cars at lo-hi m; `visible`: only those labelled occlusion 0."""
     def value(d: DatasetStats) -> float:
         dist = d.get("lidar.car_distance_m")
-        return _median(d.get("lidar.car_points")[(dist >= lo) & (dist < hi)])
+        keep = (dist >= lo) & (dist < hi)
+        if visible:
+            keep &= d.get("lidar.car_occluded") == 0
+        return _median(d.get("lidar.car_points")[keep])
     return value
 
 
@@ -79,6 +83,10 @@ STATS: tuple[Stat, ...] = (
     Stat("lidar.car_points_0_20m", "points on a Car at 0-20 m", "", car_points(0, 20)),
     Stat("lidar.car_points_20_40m", "points on a Car at 20-40 m", "", car_points(20, 40)),
     Stat("lidar.car_points_40_80m", "points on a Car at 40-80 m", "", car_points(40, 80)),
+    Stat("lidar.visible_car_points_20_40m", "points on a fully visible Car at 20-40 m", "",
+         car_points(20, 40, visible=True)),
+    Stat("lidar.visible_car_points_40_80m", "points on a fully visible Car at 40-80 m", "",
+         car_points(40, 80, visible=True)),
     Stat("images.grey_mean", "mean grey level", "", med("images.grey_mean")),
     Stat("images.saturation_mean", "mean HSV saturation", "", med("images.saturation_mean")),
     Stat("images.mean_abs_dx", "mean |dI/dx| of the grey image", "grey levels",

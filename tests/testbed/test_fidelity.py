@@ -188,3 +188,17 @@ def test_the_command_writes_the_report_and_turns_a_bad_tolerance_file_into_a_mes
     bad.write_text("statistics: {nope: 0.1}\n")
     res = CliRunner().invoke(fidelity, [*args, "--out", str(tmp_path / "o2"), "--tolerances", str(bad)])
     assert res.exit_code == 1 and "'nope'" in res.output and str(bad) in res.output
+
+
+def test_points_on_cars_by_distance_and_on_the_fully_visible_ones():
+    """Medians by hand: the visible statistic keeps the occlusion-0 Cars of its distance bin."""
+    from testbed.fidelity.catalog import car_points
+    from testbed.fidelity.stats import DatasetStats
+
+    d = DatasetStats("x", None, ["0"], [], {"lidar": True, "labels": True}, {
+        "lidar.car_points": np.array([500.0, 120.0, 30.0, 100.0, 9.0, 2.0, 40.0]),
+        "lidar.car_distance_m": np.array([10.0, 25.0, 30.0, 39.0, 45.0, 70.0, 20.0]),
+        "lidar.car_occluded": np.array([0.0, 0.0, 2.0, 0.0, 0.0, 1.0, 1.0])}, {}, {})
+    assert car_points(20, 40)(d) == np.median([120.0, 30.0, 100.0, 40.0])  # 70
+    assert car_points(20, 40, visible=True)(d) == np.median([120.0, 100.0])  # 110
+    assert car_points(40, 80)(d) == 5.5 and car_points(40, 80, visible=True)(d) == 9.0
