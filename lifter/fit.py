@@ -49,7 +49,7 @@ from .placement import (
     MAX_GROW_W,
     SIGMA_LENGTH,
     SIGMA_SIDE_PX,
-    height_from_top,
+    height_from_box,
     length_from_sides,
     percentile,
     road_y,
@@ -353,9 +353,8 @@ def _fit_box(box: Box2D, prior: Prior, cand: np.ndarray, height: np.ndarray, pts
     ry_prior = float(wrap_angle(prior.alpha + np.arctan2(c[0], c[1])))
     small = box.type in SMALL_CLASSES
     ry, T, dims, pinned, cost = _best_yaw(obj, prior, ry_prior, small, box, view, plane)
-    if view.outline == "box" and box.bbox[1] > 1.0 and box.bbox[3] < view.image_size[1] - 2.0:
-        dims = dims.copy()
-        dims[0] = height_from_top(T, dims, ry, box.bbox[1], view.P)
+    dims = dims.copy()
+    dims[0] = height_from_box(T, dims, ry, box.bbox, view.outline, view.image_size[1], view.P)
     h, w, l = dims
     # claim this object's returns so a farther box does not take them as its own
     grown = np.array([T[0], T[1] + CLAIM_MARGIN, T[2], h + 2 * CLAIM_MARGIN,

@@ -87,7 +87,7 @@ def _mono_box(box: Box2D, prior: Prior, calib: Calibration, size, road, outline:
     import numpy as np
 
     from .mono import contact_of, mono_quality, solve_weighing_alpha
-    from .placement import height_from_top
+    from .placement import height_from_box
     from .road import plane_under
     from .types import Lifted
 
@@ -103,9 +103,8 @@ def _mono_box(box: Box2D, prior: Prior, calib: Calibration, size, road, outline:
         cut = 0.6
     quality = 0.5 * cut * mono_quality(sol, calib.P(2)[0, 0])
     dims = np.asarray(prior.dims, dtype=float).copy()
-    if outline == "box" and box.bbox[1] > 1.0 and box.bbox[3] < size[1] - 2.0:
-        # the 2D box is the 3D box's projection: its top fixes the height on the placed footprint
-        dims[0] = height_from_top(sol.location, dims, sol.rotation_y, box.bbox[1], calib.P(2))
+    dims[0] = height_from_box(sol.location, dims, sol.rotation_y, box.bbox, outline, size[1],
+                              calib.P(2))
     return Lifted(sol.location, sol.rotation_y, dims, quality)
 
 

@@ -296,3 +296,12 @@ def height_from_top(T: np.ndarray, dims: np.ndarray, ry: float, top: float, P: n
     y_top = float(np.max(num / (P[1, 1] - top * P[2, 1])))
     h_new = T[1] - y_top
     return h_new if HEIGHT_RANGE[0] * h <= h_new <= HEIGHT_RANGE[1] * h else float(h)
+
+
+def height_from_box(T: np.ndarray, dims: np.ndarray, ry: float, bbox: np.ndarray, outline: str,
+                    image_height: int, P: np.ndarray) -> float:
+    """The box's height from its 2D box where that box is the 3D box's projection (`outline`
+    "box") and cut neither at the top nor at the bottom; else the height it has."""
+    if outline != "box" or bbox[1] <= 1.0 or bbox[3] >= image_height - 2.0:
+        return float(dims[0])
+    return height_from_top(T, dims, ry, bbox[1], P)

@@ -18,7 +18,7 @@ from .world import Actor, Part
 # Longest plan-view edge a draped mesh keeps: the surface is a parabola between vertices, and a
 # chord of length e departs from it by at most |dg/ds| e^2 / 8 = e^2 / (800 K): 4.5 mm at K = 10
 # m/%, under the 1 cm that lane paint stands above the asphalt (simgen.scenery.MARK_Z). It
-# doubles a street's static triangles (about 21k to 35k on scenes/urban.yaml).
+# triples a street's static triangles (median 18k flat, 59k draped, scenes/urban.yaml frames 0-5).
 MAX_EDGE = 6.0
 TILTED = frozenset({"Car", "Van", "Truck", "Tram", "Bus"})
 _FLATTEN = 1.0 / 1024.0  # exact in binary: squeezes heights so only plan-view edges are split

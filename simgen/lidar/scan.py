@@ -249,18 +249,20 @@ def _world_dirs(spec: LidarSpec, rot: tuple[float, ...]) -> np.ndarray:
     Elementwise, not a BLAS matmul: the (N, 3) @ (3, 3) sgemm measured 18 ms inside scan
     (probably OpenBLAS threads contending with Embree's TBB workers) against 0.1 ms alone.
     """
-    d = ray_table(spec).dirs32
-    m = np.asarray(rot, dtype=np.float32).reshape(3, 3)
-    return np.ascontiguousarray(d[:, 0:1] * m[:, 0] + d[:, 1:2] * m[:, 1] + d[:, 2:3] * m[:, 2])
+    return _rotated(ray_table(spec).dirs32, rot)
 
 
 @lru_cache(maxsize=16)
 def _world_source(spec: LidarSpec, rot: tuple[float, ...]) -> np.ndarray:
     """Where each ray starts relative to the LiDAR's origin, in the world frame (RayTable.source
     rotated with the rig), cached like `_world_dirs`."""
-    src = ray_table(spec).source
+    return _rotated(ray_table(spec).source, rot)
+
+
+def _rotated(a: np.ndarray, rot: tuple[float, ...]) -> np.ndarray:
+    """(N, 3) float32 rows rotated by the row-major 3 x 3 `rot`, elementwise (see `_world_dirs`)."""
     m = np.asarray(rot, dtype=np.float32).reshape(3, 3)
-    return np.ascontiguousarray(src[:, 0:1] * m[:, 0] + src[:, 1:2] * m[:, 1] + src[:, 2:3] * m[:, 2])
+    return np.ascontiguousarray(a[:, 0:1] * m[:, 0] + a[:, 1:2] * m[:, 1] + a[:, 2:3] * m[:, 2])
 
 
 @lru_cache(maxsize=16)
