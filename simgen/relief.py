@@ -1,4 +1,5 @@
-"""Lay a world built flat onto a road that rises and falls (`simgen.road.VerticalProfile`).
+"""Lay a world built flat onto a road that rises and falls (`simgen.road.VerticalProfile`) and is
+crowned across (`simgen.road.RoadLayout.crown`).
 
 The scenery and the actors are placed on a flat road first (every footprint test, every lot and
 stall is planned in that plan view) and then carried onto the road's surface: each static vertex
@@ -19,6 +20,8 @@ from .world import Actor, Part
 # chord of length e departs from it by at most |dg/ds| e^2 / 8 = e^2 / (800 K): 4.5 mm at K = 10
 # m/%, under the 1 cm that lane paint stands above the asphalt (simgen.scenery.MARK_Z). It
 # triples a street's static triangles (median 18k flat, 59k draped, scenes/urban.yaml frames 0-5).
+# The crown is linear across each half of the carriageway, which meets the other at the divider
+# (`simgen.scenery._carriageway`), and flat beyond the curbs: splitting adds no error there.
 MAX_EDGE = 6.0
 TILTED = frozenset({"Car", "Van", "Truck", "Tram", "Bus"})
 _FLATTEN = 1.0 / 1024.0  # exact in binary: squeezes heights so only plan-view edges are split
@@ -37,7 +40,7 @@ def drape_mesh(mesh: trimesh.Trimesh, road: RoadLayout) -> trimesh.Trimesh:
 
 def drape_parts(parts: list[Part], road: RoadLayout) -> list[Part]:
     """Static parts (world frame) laid onto the road; unchanged on a flat road."""
-    if road.profile is None:
+    if road.flat:
         return parts
     return [Part(drape_mesh(p.mesh, road), p.material) for p in parts]
 
@@ -56,7 +59,7 @@ def _tilt_to(normal: np.ndarray) -> np.ndarray:
 def drape_actor(actor: Actor, road: RoadLayout) -> None:
     """Raise the actor onto the road under its origin (its box's bottom centre) and let it move
     along the surface there (its velocity gains the climb); vehicles also tilt to the surface."""
-    if road.profile is None:
+    if road.flat:
         return
     x, y = actor.pose[0, 3], actor.pose[1, 3]
     n = road.surface_normal(x, y)

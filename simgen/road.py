@@ -12,6 +12,11 @@ same across it, so the cross street is level along its length. The world's z axi
 vertical and the ego's stretch of road is level (the sensors ride on the ego vehicle, so only the
 change of grade from the ego's own shows in its camera and LiDAR); the road then bends up or down
 ahead and behind it on parabolic vertical curves, as roads are designed.
+
+Across, a carriageway is crowned: it falls from its crown (the divider) to each curb at the cross
+slope `crown`, so that rain runs off. The ego vehicle rolls with its own lane, so in its frame
+its side of the road is level and the oncoming side falls away at twice the cross slope, to the
+far curb; beyond each curb the sidewalk and the land keep the height of that curb.
 """
 
 from __future__ import annotations
@@ -71,17 +76,26 @@ class RoadLayout:
     cross_s: float | None = None  # s of a perpendicular cross street's centre line (straight roads)
     cross_lanes: int = 0  # per direction on the cross street
     profile: VerticalProfile | None = None  # None: the whole world is flat at z = 0
+    crown: float = 0.0  # cross slope each side of the crown (fall per metre); 0: flat across
 
     def __post_init__(self):
         if isinstance(self.profile, dict):  # rebuilt from its to_dict() form (meta/)
             object.__setattr__(self, "profile", VerticalProfile(**self.profile))
 
     def to_dict(self) -> dict:
-        """Plain values; a flat road's has no `profile` key, as before profiles existed."""
+        """Plain values; a road flat along (across) has no `profile` (`crown`) key, as before
+        either existed."""
         out = asdict(self)
         if self.profile is None:
             del out["profile"]
+        if self.crown == 0.0:
+            del out["crown"]
         return out
+
+    @property
+    def flat(self) -> bool:
+        """Whether the whole road is the plane z = 0."""
+        return self.profile is None and self.crown == 0.0
 
     # Lateral positions (d) of the road's lines, left of the ego-lane centre.
     @property
@@ -141,21 +155,48 @@ class RoadLayout:
             return x + 0.0 * y
         return np.arctan2(k * x, 1.0 - k * y) / k
 
+    def d_of(self, x, y) -> np.ndarray:
+        """Lateral offset d of world (x, y), broadcasting: on a circle, its radius less the
+        point's distance from the centre (0, 1/k)."""
+        x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+        k = self.curvature
+        if k == 0.0:
+            return y + 0.0 * x
+        return 1.0 / k - np.sign(k) * np.hypot(x, y - 1.0 / k)
+
+    def _crown_height_and_slope(self, d) -> tuple[np.ndarray, np.ndarray]:
+        """Height across the road and its slope dz/dd (ego's frame): level on the ego's side,
+        falling at twice the cross slope from the divider to the far curb, level beyond."""
+        u = np.asarray(d, dtype=float) - self.divider
+        far = self.left_curb - self.divider
+        on = (u > 0.0) & (u < far)
+        return -2.0 * self.crown * np.clip(u, 0.0, far), np.where(on, -2.0 * self.crown, 0.0)
+
     def height(self, x, y) -> np.ndarray:
         """Road surface height z at world (x, y) (0 on a flat road), broadcasting."""
-        if self.profile is None:
+        if self.flat:
             return np.zeros(np.broadcast(np.asarray(x), np.asarray(y)).shape)
-        return self.profile.height_and_grade(self.s_of(x, y))[0]
+        along = None if self.profile is None else self.profile.height_and_grade(self.s_of(x, y))[0]
+        if self.crown == 0.0:
+            return along
+        across = self._crown_height_and_slope(self.d_of(x, y))[0]
+        return across if along is None else along + across
 
     def surface_normal(self, x: float, y: float) -> np.ndarray:
-        """Unit upward normal of the road surface z = height(x, y) at one point."""
-        if self.profile is None:
+        """Unit upward normal of the road surface z = height(x, y) at one point: the grade along
+        times the gradient of s, plus the slope across times the gradient of d."""
+        if self.flat:
             return np.array([0.0, 0.0, 1.0])
-        g = float(self.profile.height_and_grade(self.s_of(x, y))[1])
         k = self.curvature
-        a, b = k * x, 1.0 - k * y  # ds/dx, ds/dy of s = atan2(a, b) / k
-        r2 = a * a + b * b
-        gx, gy = g * b / r2, g * a / r2
+        if k == 0.0:
+            grad_s, grad_d = np.array([1.0, 0.0]), np.array([0.0, 1.0])
+        else:
+            a, b = k * x, 1.0 - k * y  # ds/dx, ds/dy of s = atan2(a, b) / k
+            grad_s = np.array([b, a]) / (a * a + b * b)
+            grad_d = -np.sign(k) * np.array([x, y - 1.0 / k]) / np.hypot(x, y - 1.0 / k)
+        g = float(self.profile.height_and_grade(self.s_of(x, y))[1]) if self.profile else 0.0
+        c = float(self._crown_height_and_slope(self.d_of(x, y))[1]) if self.crown else 0.0
+        gx, gy = g * grad_s + c * grad_d
         n = np.array([-gx, -gy, 1.0])
         return n / np.linalg.norm(n)
 
@@ -163,7 +204,7 @@ class RoadLayout:
         """The least-squares plane (a, b, c, d), a x + b y + c z + d = 0 with unit upward normal,
         through the carriageway between s0 and s1: the one road plane per frame that KITTI's
         planes/ files hold, fitted where the camera sees most of its labelled road users."""
-        if self.profile is None:
+        if self.flat:
             return np.array([0.0, 0.0, 1.0, 0.0])
         s = np.arange(s0, s1 + step / 2, step)
         d = np.linspace(self.right_curb, self.left_curb, 5)

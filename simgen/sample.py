@@ -102,7 +102,7 @@ def _road_layout(spec: SceneSpec, v: dict) -> RoadLayout:
         s_max=max(spec.road.length_ahead, float(v["traffic.max_distance"]) + 20.0),
         cross_s=float(v["road.intersection_distance"]) if kind == "intersection" else None,
         cross_lanes=int(v["road.cross_lanes_per_direction"]) if kind == "intersection" else 0,
-        profile=_profile(v))
+        profile=_profile(v), crown=float(v["road.crown"]))
 
 
 def _profile(v: dict) -> VerticalProfile | None:

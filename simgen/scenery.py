@@ -133,9 +133,20 @@ class _Meshes:
         return any(fp.intersects(c) for c in self.clear)
 
 
+def _carriageway(road: RoadLayout, out: _Meshes) -> None:
+    """The asphalt from curb to curb; a crowned one in two strips that meet at the crown (the
+    divider), so that the draped surface bends there and not across a triangle."""
+    ss = road.samples(road.s_min, road.s_max)
+    if road.crown == 0.0:
+        out.add(ASPHALT, _strip(road, ss, road.right_curb, road.left_curb, 0.0))
+        return
+    out.add(ASPHALT, _strip(road, ss, road.right_curb, road.divider, 0.0))
+    out.add(ASPHALT, _strip(road, ss, road.divider, road.left_curb, 0.0))
+
+
 def _ground(road: RoadLayout, ground: Material, out: _Meshes) -> None:
     """Asphalt, the cross street, sidewalks, curb faces and the verges beyond them."""
-    out.add(ASPHALT, _strip(road, road.samples(road.s_min, road.s_max), road.right_curb, road.left_curb, 0.0))
+    _carriageway(road, out)
     if road.cross_s is not None:
         out.clear.append(_cross_street(road, out.add))
     ch, sw = road.curb_height, road.sidewalk_width
@@ -662,7 +673,7 @@ def _frontage_ground(road: RoadLayout, plan: Frontage, ground: Material, out: _M
     """Asphalt, the cross street, sidewalks and curbs broken by side streets, and each lot's
     ground (car parks paved at sidewalk height) out to LAND_DEPTH."""
     ch, sw = road.curb_height, road.sidewalk_width
-    out.add(ASPHALT, _strip(road, road.samples(road.s_min, road.s_max), road.right_curb, road.left_curb, 0.0))
+    _carriageway(road, out)
     if road.cross_s is not None:
         out.clear.append(_cross_street(road, out.add, LAND_DEPTH + sw))
     for side in (-1, 1):

@@ -65,6 +65,9 @@ class RoadSpec(Strict):
     grade_behind: factor(float, -0.15, 0.15) = 0.0
     vertical_k: factor(float, 2.0, 200.0) = 20.0
     vertical_start: factor(float, 0.0, 200.0) = 0.0
+    # The carriageway's cross slope each side of its crown at the divider (fall per metre;
+    # simgen.road.RoadLayout.crown). 0 (the default): flat across.
+    crown: factor(float, 0.0, 0.08) = 0.0
 
 
 class TrafficSpec(Strict):

@@ -1,4 +1,5 @@
-"""Roads that rise and fall: the profile's geometry, hand-computed, and a world laid onto it."""
+"""Roads that rise and fall and are crowned across: the geometry, hand-computed, and a world laid
+onto it."""
 
 from __future__ import annotations
 
@@ -32,8 +33,24 @@ def test_grade_is_the_derivative_of_height():
     np.testing.assert_allclose(np.gradient(z, s)[1:-1], g[1:-1], atol=2e-4)
 
 
-def _curved(profile=None):
-    return RoadLayout(0.004, 2, 3.5, 0, 3.0, 0.15, True, -60.0, 160.0, profile=profile)
+def _curved(profile=None, crown=0.0, curvature=0.004):
+    return RoadLayout(curvature, 2, 3.5, 0, 3.0, 0.15, True, -60.0, 160.0, profile=profile,
+                      crown=crown)
+
+
+def test_crown_heights_by_hand():
+    # 2 lanes of 3.5 m each way, ego in the right lane, parking strips of 2.3 m: the divider at
+    # d = -1.75 + 7 = 5.25, the far curb at 5.25 + 7 + 2.3 = 14.55. At 2 % each side of the crown
+    # the far side falls at 4 % in the ego's frame; the ego's side and beyond the curbs are level.
+    for k in (0.0, 0.004, -0.006):
+        road = _curved(crown=0.02, curvature=k)
+        d = np.array([-8.0, -4.05, 0.0, 5.25, 10.0, 14.55, 20.0])
+        for s in (-40.0, 0.0, 75.0):
+            x, y = road.xy(np.full(len(d), s), d).T
+            np.testing.assert_allclose(road.d_of(x, y), d, atol=1e-9)
+            np.testing.assert_allclose(road.height(x, y),
+                                       [0, 0, 0, 0, -0.04 * 4.75, -0.04 * 9.3, -0.04 * 9.3],
+                                       atol=1e-9)
 
 
 def test_arc_length_of_a_point_on_a_curved_road():
@@ -43,10 +60,12 @@ def test_arc_length_of_a_point_on_a_curved_road():
         np.testing.assert_allclose(road.s_of(*road.xy(s, d).T), s, atol=1e-9)
 
 
-def test_surface_normal_matches_the_height_field():
-    road = _curved(VerticalProfile(-0.05, 0.02, 12.0, 8.0))
+@pytest.mark.parametrize("crown", [0.0, 0.025])
+@pytest.mark.parametrize("curvature", [0.0, 0.004, -0.005])
+def test_surface_normal_matches_the_height_field(crown, curvature):
+    road = _curved(VerticalProfile(-0.05, 0.02, 12.0, 8.0), crown, curvature)
     h = 1e-4
-    for x, y in [(30.0, 2.0), (55.0, 9.0), (-30.0, -4.0)]:
+    for x, y in [(30.0, 2.0), (55.0, 9.0), (-30.0, -4.0), (20.0, 11.0)]:
         gx = (road.height(x + h, y) - road.height(x - h, y)) / (2 * h)
         gy = (road.height(x, y + h) - road.height(x, y - h)) / (2 * h)
         n = np.array([-gx, -gy, 1.0]) / np.linalg.norm([gx, gy, 1.0])
@@ -86,7 +105,7 @@ def test_draped_mesh_follows_the_road_and_keeps_walls_vertical():
 def test_flat_specs_build_the_flat_world():
     spec = spec_from_dict({"name": "flat"})
     world = sample_world(spec, 0, 0)
-    assert "profile" not in world.scenery["road"]
+    assert "profile" not in world.scenery["road"] and "crown" not in world.scenery["road"]
     assert all(np.asarray(p.mesh.vertices)[:, 2].min() >= -1e-9 for p in world.static)
 
 
@@ -117,7 +136,46 @@ def test_road_surface_under_a_graded_world_is_where_the_camera_sees_it():
     assert checked >= 4
 
 
-def test_a_car_tilted_on_a_grade_is_labelled_by_its_upright_box_on_the_road():
+def test_the_camera_sees_the_far_side_of_a_crowned_road_fall_away():
+    """Rendered depth of the oncoming half of the carriageway meets the crown's heights (down to
+    0.2-0.4 m below the ego's lane plane): the camera sees the draped asphalt."""
+    from simgen.render import render
+
+    spec = load_spec(ROOT / "scenes/golden/street.yaml")
+    d = spec.model_dump()
+    d["road"].update(crown=0.025)
+    d["traffic"].update(vehicles_per_100m=0.0, parked_per_100m=0.0, pedestrians_per_100m=0.0,
+                        cyclists_per_100m=0.0)
+    world = sample_world(type(spec).model_validate(d), 0, 0)
+    road = RoadLayout(**world.scenery["road"])
+    depth = render(world).depth
+    calib = world.rig.calib
+    world_from_rect = world.rig.reference_pose @ np.linalg.inv(calib.velo_to_rect)
+    v, u = np.mgrid[185:375:3, 0:1242:6]
+    z_cam = depth[v, u]
+    ok = (z_cam > 0) & (z_cam < 80)
+    p = calib.image_to_rect(np.c_[u[ok], v[ok]].astype(float), z_cam[ok])
+    x, y, z = (np.c_[p, np.ones(len(p))] @ world_from_rect.T)[:, :3].T
+    across = road.d_of(x, y)
+    far = (across > road.divider + 0.3) & (across < road.left_curb - 0.3) & (x > 8) & (x < 50)
+    assert far.sum() > 100
+    np.testing.assert_allclose(z[far], road.height(x[far], y[far]), atol=0.03)
+    assert road.height(x[far], y[far]).min() < -0.15
+
+
+# (road, where the car stands, its climb at 10 m/s along +x): 25 m into a vertical curve to -6 %
+# over 60 m the grade is -2.5 %, so the car pitches and falls 0.25 m/s; on the far side of a 2 %
+# crown (4 % in the ego's frame) it rolls and stays level.
+_TILTS = {
+    "grade": (RoadLayout(0.0, 2, 3.5, 0, 3.0, 0.15, False, -20.0, 160.0,
+                         profile=VerticalProfile(-0.06, 0.0, 10.0, 0.0)), (25.0, 1.5), -0.25),
+    "crown": (RoadLayout(0.0, 2, 3.5, 0, 3.0, 0.15, False, -20.0, 160.0, crown=0.02),
+              (25.0, 8.5), 0.0),
+}
+
+
+@pytest.mark.parametrize("tilt", sorted(_TILTS))
+def test_a_tilted_car_is_labelled_by_its_upright_box_on_the_road(tilt):
     """KITTI's label holds a yaw only: the tilted car's label is the upright box of its size about
     its bottom centre on the road, and the 2D box is that box's projection, as in KITTI."""
     from kitti.boxes import project_boxes
@@ -128,15 +186,14 @@ def test_a_car_tilted_on_a_grade_is_labelled_by_its_upright_box_on_the_road():
     from simgen.spec import LabelRules
     from simgen.world import Actor, Light, Weather, World
 
-    road = RoadLayout(0.0, 2, 3.5, 0, 3.0, 0.15, False, -20.0, 160.0,
-                      profile=VerticalProfile(-0.06, 0.0, 10.0, 0.0))
+    road, (x0, y0), climb = _TILTS[tilt]
     recipe = {"kind": "car", "dims": [1.53, 1.63, 3.88], "color": [0.5, 0.5, 0.5], "seed": 3}
     T = np.eye(4)
-    T[:3, 3] = [25.0, 1.5, 0.0]
+    T[:3, 3] = [x0, y0, 0.0]
     car = Actor(1, "Car", build_actor_parts(recipe), T, velocity=np.array([10.0, 0.0, 0.0]), recipe=recipe)
     drape_actor(car, road)
-    grade = road.profile.height_and_grade(25.0)[1]
-    assert car.velocity[2] == pytest.approx(10.0 * grade, rel=1e-12)  # moves along the road
+    assert car.velocity[2] == pytest.approx(climb, abs=1e-12)  # moves along the road
+    np.testing.assert_allclose(car.pose[:3, 2], road.surface_normal(x0, y0), atol=1e-12)
     rig = onboard_rig()
     world = World(actors=[car], static=[], weather=Weather(), lidar_pose=rig.reference_pose.copy(),
                   rig=rig, light=Light())
