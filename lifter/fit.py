@@ -15,6 +15,10 @@ under CLAIM_MIN_SCORE after the others):
    nearest the network's; too few or collinear-in-one-point returns keep the network's yaw. The
    other axis and the network's own yaw are tried too, weighed by the network's orientation
    prior, how much worse a rectangle fits the returns, the 2D box's sides and the length prior;
+   (3b) where the winner's box still misses the 2D box's sides by more than their noise, the yaws
+   within SIGMA_YAW_PRIOR of it are weighed the same way (a real car's rounded corners and curved
+   faces can leave the closeness criterion's L-shape 10-20 degrees off, where both the 2D box
+   and a rectangle's fit to the returns show it);
 4. size: the network's, measured where both ends show, grown to hold the returns (capped);
    the height brought within ROOF_GAP of the roof returns when the roof is hit; a length the
    returns do not measure is chosen among LENGTH_GRID x the network's by how well the fitted
@@ -83,6 +87,8 @@ COST_SCALE = 8.0       # the winning yaw's cost (squared normalised misfits: yaw
 SIGMA_RECT = 0.005      # m, a yaw whose rectangle fits the returns this much worse (RMS) than the
                        # L-shape's costs one sigma: the HDL-64E's range noise (< 2 cm, Velodyne)
 SMALL_CLASSES = ("Pedestrian", "Cyclist", "Person_sitting")
+REFINE_STEP = np.deg2rad(2.5)  # step 3b's yaws, one SIGMA_YAW_PRIOR each side of the winner's,
+                               # lie this far apart; then half a step each side of the best
 
 _COARSE = np.deg2rad(np.arange(0.0, 90.0, 3.0))
 _FINE = np.deg2rad(np.arange(-1.5, 1.5001, 0.1))
@@ -380,15 +386,54 @@ def _best_yaw(obj: _Returns, prior: Prior, ry_prior: float, small: bool, box: Bo
     body = obj.xz[obj.height < BELT_LINE * prior.dims[0]]
     body = body if len(body) >= MIN_LSHAPE else obj.xz
     yaws, costs = _yaw_hypotheses(body, ry_prior, small)
-    best_fit, best_cost = None, np.inf
+    best_fit, best_cost, best_box_cost = None, np.inf, 0.0
     for ry_h, cost in zip(yaws.tolist(), costs.tolist()):
         if cost >= best_cost:  # its misfit to the 2D box could only add to that
             continue
         T_h, dims_h, pinned_h, fit_cost = _box_for_yaw(ry_h, obj, prior, small, box, view, plane)
         cost += fit_cost
         if cost < best_cost:
-            best_fit, best_cost = (ry_h, T_h, dims_h, pinned_h, cost), cost
-    return best_fit
+            best_fit, best_cost, best_box_cost = (ry_h, T_h, dims_h, pinned_h, cost), cost, fit_cost
+    if small or len(body) < MIN_LSHAPE or best_box_cost <= 1.0:
+        return best_fit
+    return _refine_yaw(best_fit, body, obj, prior, ry_prior, box, view, plane)
+
+
+def _refine_yaw(best_fit: tuple, body: np.ndarray, obj: _Returns, prior: Prior, ry_prior: float,
+                box: Box2D, view: _View, plane: np.ndarray) -> tuple:
+    """Step 3b: the yaws near the winner's, each costing its distance from the network's yaw,
+    how much worse a rectangle fits the returns than the best-fitting of them, and its box's
+    misfit to the 2D box's sides and the length prior; the cheapest wins (the winner included).
+    Yaws whose first two terms alone cost more than the best so far are not placed."""
+    pts = body[:: -(-len(body) // MAX_LSHAPE_POINTS)]
+    ry0 = best_fit[0]
+    offsets = np.arange(-SIGMA_YAW_PRIOR, SIGMA_YAW_PRIOR + 1e-9, REFINE_STEP)
+    yaws = [float(ry0 + d) for d in offsets]
+    rms = [_rect_rms(pts, y) for y in yaws]
+    rms_min = min(rms)
+
+    def pre(y: float, r: float) -> float:
+        return ((_wrap(2 * (y - ry_prior)) / 2 / SIGMA_YAW_PRIOR) ** 2
+                + (max(r - rms_min, 0.0) / SIGMA_RECT) ** 2)
+
+    best, best_cost = best_fit, np.inf
+    for y, r in sorted(zip(yaws, rms), key=lambda yr: (yr[0] != ry0, pre(*yr))):
+        c = pre(y, r)
+        if c >= best_cost:
+            continue
+        T, dims, pinned, fit_cost = _box_for_yaw(y, obj, prior, False, box, view, plane)
+        if c + fit_cost < best_cost:
+            best, best_cost = (_wrap(y), T, dims, pinned, c + fit_cost), c + fit_cost
+    y1 = best[0]
+    for d in (-REFINE_STEP / 2, REFINE_STEP / 2):
+        y = float(y1 + d)
+        c = pre(y, _rect_rms(pts, y))
+        if c >= best_cost:
+            continue
+        T, dims, pinned, fit_cost = _box_for_yaw(y, obj, prior, False, box, view, plane)
+        if c + fit_cost < best_cost:
+            best, best_cost = (_wrap(y), T, dims, pinned, c + fit_cost), c + fit_cost
+    return best
 
 
 @numba.njit(cache=True, nogil=True)
