@@ -22,6 +22,8 @@ step below is the physical one, with `simgen.world.CameraResponse` holding its s
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import cv2
 import numpy as np
 
@@ -72,10 +74,20 @@ def expose(lin: np.ndarray, K: np.ndarray, cam: CameraResponse, rng: np.random.G
         raw = _noisy(raw, cam, rng)
         raw16 = np.round(raw * 65535.0).astype(np.uint16)
         # OpenCV names a pattern by the second row's first two pixels: RGGB is its "BayerBG".
-        img = cv2.cvtColor(raw16, cv2.COLOR_BayerBG2RGB).astype(np.float32) / 65535.0
-    else:
-        img = _noisy(img.astype(np.float32), cam, rng)
-    return np.round(np.clip(img, 0.0, 1.0) ** (1.0 / cam.gamma) * 255.0).astype(np.uint8)
+        return _output_table(cam.gamma)[cv2.cvtColor(raw16, cv2.COLOR_BayerBG2RGB)]
+    return _output_curve(_noisy(img.astype(np.float32), cam, rng), cam.gamma)
+
+
+def _output_curve(signal: np.ndarray, gamma: float) -> np.ndarray:
+    """Linear float32 signal (1 = white level) to 8-bit output values."""
+    return np.round(np.clip(signal, 0.0, 1.0) ** (1.0 / gamma) * 255.0).astype(np.uint8)
+
+
+@lru_cache(maxsize=8)
+def _output_table(gamma: float) -> np.ndarray:
+    """The 8-bit output of every demosaiced 16-bit value: one lookup per pixel instead of a
+    float32 power (the same arithmetic per value, so the same bytes)."""
+    return _output_curve(np.arange(65536, dtype=np.uint16).astype(np.float32) / 65535.0, gamma)
 
 
 def _noisy(signal: np.ndarray, cam: CameraResponse, rng: np.random.Generator) -> np.ndarray:

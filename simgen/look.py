@@ -14,6 +14,8 @@ filter array and noise) is simgen.camera, applied last.
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import cv2
 import numpy as np
 
@@ -82,7 +84,7 @@ def apply_look(color: np.ndarray, depth: np.ndarray, K: np.ndarray, weather: Wea
     """The final uint8 RGB image of a frame. `color` is the renderer's gamma-encoded image of
     linear radiance / `headroom`; with a `camera`, the normal sensor's image goes through it
     (simgen.camera), else it is clipped and quantised as rendered."""
-    img = color.astype(np.float64) / 255.0 * headroom ** (1 / GAMMA)
+    img = _encoded(color, headroom)
     if weather.fog_extinction > 0:
         img = fog(img, depth, K, weather.fog_extinction, "night" if sensor == "thermal" else light.time)
     if weather.rain_rate > 0 and sensor != "thermal":  # long-wave infrared hardly sees streaks
@@ -92,5 +94,25 @@ def apply_look(color: np.ndarray, depth: np.ndarray, K: np.ndarray, weather: Wea
     elif sensor == "thermal":
         img = thermal(img, rng)
     elif camera is not None:
-        return expose(np.clip(img, 0.0, None) ** GAMMA, K, camera, rng)
+        clear = not (weather.fog_extinction > 0 or weather.rain_rate > 0)
+        lin = (_radiance_table(headroom)[color] if clear and color.dtype == np.uint8
+               else _radiance(img))
+        return expose(lin, K, camera, rng)
     return np.clip(np.round(img * 255.0), 0, 255).astype(np.uint8)
+
+
+def _encoded(color: np.ndarray, headroom: float) -> np.ndarray:
+    """The renderer's colours as float64 gamma-encoded radiance (1 = white at the reference light)."""
+    return color.astype(np.float64) / 255.0 * headroom ** (1 / GAMMA)
+
+
+def _radiance(img: np.ndarray) -> np.ndarray:
+    """Gamma-encoded radiance to linear radiance."""
+    return np.clip(img, 0.0, None) ** GAMMA
+
+
+@lru_cache(maxsize=8)
+def _radiance_table(headroom: float) -> np.ndarray:
+    """The linear radiance of each 8-bit rendered value: one lookup per pixel instead of a
+    float64 power (the same arithmetic per value, so the same bits)."""
+    return _radiance(_encoded(np.arange(256, dtype=np.uint8), headroom))

@@ -14,11 +14,15 @@ porous part is (1 - porosity ** 2) deep.
 
 from __future__ import annotations
 
+import ctypes
 from dataclasses import dataclass
+from functools import cache
 
 import cv2
 import numpy as np
+from embreex import rtcore_scene
 from embreex.mesh_construction import TriangleMesh
+from embreex.rtcore import EmbreeDevice
 from embreex.rtcore_scene import EmbreeScene
 
 from .world import Part
@@ -28,6 +32,69 @@ SOFTEN = 0.8  # ray-grid cells: a Gaussian that hides the grid's stair steps alo
 T_NEAR = 0.05  # m: a ray starts this far from its surface point (depth precision, flat facets)
 
 
+# Embree 4's enums (rtcore_common.h, rtcore_buffer.h) for one triangle geometry.
+_TRIANGLE, _INDEX, _VERTEX, _UINT3, _FLOAT3 = 0, 0, 1, 0x5003, 0x9003
+_HEAD = object.__basicsize__  # bytes of a CPython object header; a Cython class's fields follow
+
+
+def embree_scene(vertices: np.ndarray, faces: np.ndarray) -> EmbreeScene:
+    """A new Embree scene of one triangle geometry: `vertices` (V, 3) and `faces` (F, 3) indexing
+    them, held as float32 and uint32 as embreex's TriangleMesh holds them. embreex copies into
+    Embree one Python-level read per number (100 ms for a street's 70k vertices and 130k
+    triangles); where its objects have the layout `_handles` reads, the buffers are filled with
+    one memmove each through the same library calls instead, and Embree gets the same numbers."""
+    device = EmbreeDevice()
+    scene = EmbreeScene(device)
+    lib, handles = _embree_lib(), _handles(scene, device)
+    if lib is None or handles is None:
+        TriangleMesh(scene, np.asarray(vertices, np.float32), np.asarray(faces, np.int32))
+        return scene
+    v = np.zeros((len(vertices), 4), np.float32)  # Embree reads vertices 16 bytes apart
+    v[:, :3] = vertices
+    f = np.ascontiguousarray(faces, np.uint32)
+    geom = lib.rtcNewGeometry(handles[1], _TRIANGLE)
+    for kind, fmt, a in ((_VERTEX, _FLOAT3, v), (_INDEX, _UINT3, f)):
+        buffer = lib.rtcSetNewGeometryBuffer(geom, kind, 0, fmt, a.strides[0], len(a))
+        ctypes.memmove(buffer, a.ctypes.data, a.nbytes)
+    lib.rtcCommitGeometry(geom)
+    lib.rtcAttachGeometry(handles[0], geom)
+    lib.rtcReleaseGeometry(geom)
+    return scene
+
+
+@cache
+def _embree_lib() -> ctypes.CDLL | None:
+    """Embree 4's geometry calls, looked up through embreex's own extension (so in the very
+    library embreex uses); None for an embreex built on another Embree."""
+    lib = ctypes.CDLL(rtcore_scene.__file__)
+    try:
+        calls = {"rtcNewGeometry": ([ctypes.c_void_p, ctypes.c_int], ctypes.c_void_p),
+                 "rtcSetNewGeometryBuffer": ([ctypes.c_void_p, ctypes.c_int, ctypes.c_uint, ctypes.c_int,
+                                              ctypes.c_size_t, ctypes.c_size_t], ctypes.c_void_p),
+                 "rtcCommitGeometry": ([ctypes.c_void_p], None),
+                 "rtcAttachGeometry": ([ctypes.c_void_p, ctypes.c_void_p], ctypes.c_uint),
+                 "rtcReleaseGeometry": ([ctypes.c_void_p], None)}
+        for name, (args, res) in calls.items():
+            getattr(lib, name).argtypes, getattr(lib, name).restype = args, res
+    except AttributeError:
+        return None
+    return lib
+
+
+def _handles(scene: EmbreeScene, device: EmbreeDevice) -> tuple[int, int] | None:
+    """The RTCScene and RTCDevice behind `scene` (made with `device`), which embreex keeps in C
+    fields (rtcore_scene.pxd: scene_i, is_committed, device; rtcore.pxd: device); None unless the
+    objects have that layout and the scene's device field is `device`."""
+    def pointer_at(obj, offset: int) -> int | None:
+        return ctypes.c_void_p.from_address(id(obj) + offset).value
+
+    if (EmbreeScene.__basicsize__, EmbreeDevice.__basicsize__) != (_HEAD + 24, _HEAD + 8):
+        return None
+    if pointer_at(scene, _HEAD + 16) != id(device):
+        return None
+    return pointer_at(scene, _HEAD), pointer_at(device, _HEAD)
+
+
 @dataclass
 class Occluders:
     """World-frame triangles that can cast a shadow, and each one's shadow depth."""
@@ -35,8 +102,8 @@ class Occluders:
     tris: np.ndarray  # (F, 3, 3) float32
     depth: np.ndarray  # (F,) float32, 1 - porosity ** 2
     # The same triangles as shared vertices and faces (vertices[faces] equals tris bit for bit),
-    # where known: embreex copies into Embree one Python-level read per coordinate, and shared
-    # vertices are about a fifth of the triangles' corners.
+    # where known: fewer numbers to copy into Embree (embree_scene), shared vertices being about
+    # a fifth of the triangles' corners.
     vertices: np.ndarray | None = None  # (V, 3) float32
     faces: np.ndarray | None = None  # (F, 3) int32
 
@@ -85,11 +152,11 @@ def sun_shadow(occluders: Occluders, depth: np.ndarray, K: np.ndarray, cam2_from
     cam = np.stack([(u[need] - K[0, 2]) * zc / K[0, 0], (v[need] - K[1, 2]) * zc / K[1, 1], zc,
                     np.ones_like(zc)])
     points = (np.linalg.inv(cam2_from_world) @ cam)[:3].T
-    scene = EmbreeScene()
     if occluders.faces is not None:
-        TriangleMesh(scene, occluders.vertices, occluders.faces)
-    else:
-        TriangleMesh(scene, occluders.tris)
+        scene = embree_scene(occluders.vertices, occluders.faces)
+    else:  # unshared corners, as embreex's TriangleMesh makes of (F, 3, 3) triangles
+        corners = occluders.tris.reshape(-1, 3)
+        scene = embree_scene(corners, np.arange(len(corners)).reshape(-1, 3))
     origins = (points + T_NEAR * to_sun).astype(np.float32)
     dirs = np.broadcast_to(to_sun.astype(np.float32), origins.shape).copy()
     prim = scene.run(origins, dirs)

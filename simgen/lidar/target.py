@@ -21,9 +21,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from embreex.mesh_construction import TriangleMesh
 from embreex.rtcore_scene import EmbreeScene
 
+from ..shadows import embree_scene
 from ..world import World
 from .rays import sweep_time_of_azimuth
 from .spec import LidarSpec
@@ -106,12 +106,11 @@ def _glass_planes(v_all: np.ndarray, f_all: np.ndarray, panes: list[tuple[int, i
 def _embree_scene(verts: list, faces: list):
     """One Embree scene of every triangle (BVH built now), the concatenated vertices and faces,
     and each triangle's inverse doubled area (for barycentric work in the kernels)."""
-    scene = EmbreeScene()
     if not verts:
-        return scene, None, None, np.zeros(0, np.float32)
+        return EmbreeScene(), None, None, np.zeros(0, np.float32)
     v_all = np.ascontiguousarray(np.concatenate(verts), dtype=np.float32)
     f_all = np.ascontiguousarray(np.concatenate(faces), dtype=np.int32)
-    TriangleMesh(scene, v_all, f_all)
+    scene = embree_scene(v_all, f_all)
     scene.run(np.zeros((1, 3), np.float32), np.ones((1, 3), np.float32))  # build the BVH now
     tri = v_all[f_all].astype(np.float64)
     ng = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
