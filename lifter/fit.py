@@ -87,8 +87,8 @@ COST_SCALE = 8.0       # the winning yaw's cost (squared normalised misfits: yaw
 SIGMA_RECT = 0.005      # m, a yaw whose rectangle fits the returns this much worse (RMS) than the
                        # L-shape's costs one sigma: the HDL-64E's range noise (< 2 cm, Velodyne)
 SMALL_CLASSES = ("Pedestrian", "Cyclist", "Person_sitting")
-REFINE_STEP = np.deg2rad(2.5)  # step 3b's yaws, one SIGMA_YAW_PRIOR each side of the winner's,
-                               # lie this far apart; then half a step each side of the best
+REFINE_STEP = np.deg2rad(5.0)  # step 3b's yaws, one SIGMA_YAW_PRIOR each side of the winner's,
+                               # lie this far apart; then a half and a quarter step around the best
 
 _COARSE = np.deg2rad(np.arange(0.0, 90.0, 3.0))
 _FINE = np.deg2rad(np.arange(-1.5, 1.5001, 0.1))
@@ -424,15 +424,15 @@ def _refine_yaw(best_fit: tuple, body: np.ndarray, obj: _Returns, prior: Prior, 
         T, dims, pinned, fit_cost = _box_for_yaw(y, obj, prior, False, box, view, plane)
         if c + fit_cost < best_cost:
             best, best_cost = (_wrap(y), T, dims, pinned, c + fit_cost), c + fit_cost
-    y1 = best[0]
-    for d in (-REFINE_STEP / 2, REFINE_STEP / 2):
-        y = float(y1 + d)
-        c = pre(y, _rect_rms(pts, y))
-        if c >= best_cost:
-            continue
-        T, dims, pinned, fit_cost = _box_for_yaw(y, obj, prior, False, box, view, plane)
-        if c + fit_cost < best_cost:
-            best, best_cost = (_wrap(y), T, dims, pinned, c + fit_cost), c + fit_cost
+    for step in (REFINE_STEP / 2, REFINE_STEP / 4):  # halve the step twice around the best
+        y1 = best[0]
+        for y in (float(y1 - step), float(y1 + step)):
+            c = pre(y, _rect_rms(pts, y))
+            if c >= best_cost:
+                continue
+            T, dims, pinned, fit_cost = _box_for_yaw(y, obj, prior, False, box, view, plane)
+            if c + fit_cost < best_cost:
+                best, best_cost = (_wrap(y), T, dims, pinned, c + fit_cost), c + fit_cost
     return best
 
 
