@@ -396,44 +396,46 @@ def _best_yaw(obj: _Returns, prior: Prior, ry_prior: float, small: bool, box: Bo
             best_fit, best_cost, best_box_cost = (ry_h, T_h, dims_h, pinned_h, cost), cost, fit_cost
     if small or len(body) < MIN_LSHAPE or best_box_cost <= 1.0:
         return best_fit
-    return _refine_yaw(best_fit, body, obj, prior, ry_prior, box, view, plane)
+    return _refine_yaw(best_fit, best_box_cost, body, obj, prior, ry_prior, box, view, plane)
 
 
-def _refine_yaw(best_fit: tuple, body: np.ndarray, obj: _Returns, prior: Prior, ry_prior: float,
-                box: Box2D, view: _View, plane: np.ndarray) -> tuple:
-    """Step 3b: the yaws near the winner's, each costing its distance from the network's yaw,
-    how much worse a rectangle fits the returns than the best-fitting of them, and its box's
-    misfit to the 2D box's sides and the length prior; the cheapest wins (the winner included).
-    Yaws whose first two terms alone cost more than the best so far are not placed."""
+def _refine_yaw(best_fit: tuple, box_cost: float, body: np.ndarray, obj: _Returns, prior: Prior,
+                ry_prior: float, box: Box2D, view: _View, plane: np.ndarray) -> tuple:
+    """Step 3b: the yaws near the winner's (whose box costs `box_cost` against the 2D box and
+    the length prior), each costing its distance from the network's yaw, how much worse a
+    rectangle fits the returns than the best-fitting of them, and its box's misfit; the cheapest
+    wins, the winner included. Yaws whose first two terms alone cost more than the best so far
+    are not placed."""
     pts = body[:: -(-len(body) // MAX_LSHAPE_POINTS)]
     ry0 = best_fit[0]
-    offsets = np.arange(-SIGMA_YAW_PRIOR, SIGMA_YAW_PRIOR + 1e-9, REFINE_STEP)
-    yaws = [float(ry0 + d) for d in offsets]
+    n = int(round(SIGMA_YAW_PRIOR / REFINE_STEP))
+    yaws = [float(ry0 + k * REFINE_STEP) for k in range(-n, n + 1) if k]
     rms = [_rect_rms(pts, y) for y in yaws]
-    rms_min = min(rms)
+    rms0 = _rect_rms(pts, ry0)
+    rms_min = min(rms + [rms0])
 
     def pre(y: float, r: float) -> float:
         return ((_wrap(2 * (y - ry_prior)) / 2 / SIGMA_YAW_PRIOR) ** 2
                 + (max(r - rms_min, 0.0) / SIGMA_RECT) ** 2)
 
-    best, best_cost = best_fit, np.inf
-    for y, r in sorted(zip(yaws, rms), key=lambda yr: (yr[0] != ry0, pre(*yr))):
+    cost0 = pre(ry0, rms0) + box_cost
+    best = [(ry0, *best_fit[1:4], cost0)]
+
+    def tried(y: float, r: float) -> None:
         c = pre(y, r)
-        if c >= best_cost:
-            continue
+        if c >= best[0][4]:  # its misfit to the 2D box could only add to that
+            return
         T, dims, pinned, fit_cost = _box_for_yaw(y, obj, prior, False, box, view, plane)
-        if c + fit_cost < best_cost:
-            best, best_cost = (_wrap(y), T, dims, pinned, c + fit_cost), c + fit_cost
+        if c + fit_cost < best[0][4]:
+            best[0] = (_wrap(y), T, dims, pinned, c + fit_cost)
+
+    for y, r in sorted(zip(yaws, rms), key=lambda yr: pre(*yr)):
+        tried(y, r)
     for step in (REFINE_STEP / 2, REFINE_STEP / 4):  # halve the step twice around the best
-        y1 = best[0]
-        for y in (float(y1 - step), float(y1 + step)):
-            c = pre(y, _rect_rms(pts, y))
-            if c >= best_cost:
-                continue
-            T, dims, pinned, fit_cost = _box_for_yaw(y, obj, prior, False, box, view, plane)
-            if c + fit_cost < best_cost:
-                best, best_cost = (_wrap(y), T, dims, pinned, c + fit_cost), c + fit_cost
-    return best
+        y1 = best[0][0]
+        for y in (y1 - step, y1 + step):
+            tried(y, _rect_rms(pts, y))
+    return best[0]
 
 
 @numba.njit(cache=True, nogil=True)
