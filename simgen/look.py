@@ -84,6 +84,10 @@ def apply_look(color: np.ndarray, depth: np.ndarray, K: np.ndarray, weather: Wea
     """The final uint8 RGB image of a frame. `color` is the renderer's gamma-encoded image of
     linear radiance / `headroom`; with a `camera`, the normal sensor's image goes through it
     (simgen.camera), else it is clipped and quantised as rendered."""
+    clear = not (weather.fog_extinction > 0 or weather.rain_rate > 0)
+    if camera is not None and sensor not in ("night_vision", "thermal") and clear \
+            and color.dtype == np.uint8:  # the common frame: one table lookup per pixel
+        return expose(_radiance_table(headroom)[color], K, camera, rng)
     img = _encoded(color, headroom)
     if weather.fog_extinction > 0:
         img = fog(img, depth, K, weather.fog_extinction, "night" if sensor == "thermal" else light.time)
@@ -94,10 +98,7 @@ def apply_look(color: np.ndarray, depth: np.ndarray, K: np.ndarray, weather: Wea
     elif sensor == "thermal":
         img = thermal(img, rng)
     elif camera is not None:
-        clear = not (weather.fog_extinction > 0 or weather.rain_rate > 0)
-        lin = (_radiance_table(headroom)[color] if clear and color.dtype == np.uint8
-               else _radiance(img))
-        return expose(lin, K, camera, rng)
+        return expose(_radiance(img), K, camera, rng)
     return np.clip(np.round(img * 255.0), 0, 255).astype(np.uint8)
 
 
