@@ -16,8 +16,9 @@ or GRADE_DOWN per metre since the last road bin, the rise capped); a car's sill,
 foot stands higher and is passed over. Returns within ROAD_BAND of their bin's lowest are road. The
 road near (x, z) is the plane (offset and tilt against the frame's plane, the tilt held towards
 zero where the returns say little about it) through the road returns in a square window grown
-until it holds MIN_ROAD of them, else the frame's plane (a scan without far road returns, as the
-generator's may be, keeps the near road's plane).
+until it holds MIN_ROAD of them, else in a window stretched along the range (FAR_WINDOW: a sparse
+scan's rings meet the far road tens of metres apart), else the frame's plane (a scan without far
+road returns keeps the near road's plane).
 """
 
 from __future__ import annotations
@@ -49,6 +50,13 @@ PER_CELL = 6        # road returns kept per bucket (a near square metre holds hu
 GRID_X = (-60.0, 60.0)   # m, rect x covered by the buckets (returns outside share the edge ones)
 GRID_Z = (0.0, 120.0)    # m, rect z
 WINDOWS = (2.0, 4.0, 8.0)  # m, window half-sizes tried in turn
+# m, half-sizes across (x) and along (z) of the window tried where no square one holds road: a
+# sparse scan's rings meet the road 10-30 m apart beyond 20 m (16 of the HDL-64E's rings: 1.6-1.8
+# deg apart, 1.73 m up), so a far object's road lies between two rings. Along the range, twice the
+# largest square reaches them; across, a lane each way keeps a crowned road's fall towards its
+# curb (3-5 % in the sensor's frame on the oncoming half) to a few centimetres, where the frame's
+# plane, fitted mostly to the ego's half, misses it by 0.1-0.3 m.
+FAR_WINDOW = (4.0, 16.0)
 MIN_ROAD = 12       # road returns a window must hold (a plane from fewer is noise)
 INLIER = 0.06       # m, refit on the returns this close to the first plane
 LAYER = 6           # returns within INLIER of each other that make the lowest layer (the road)
@@ -208,10 +216,10 @@ def _bucket(xz: np.ndarray, x0: float, z0: float, cell: float, nx: int,
 
 
 @numba.njit(cache=True, nogil=True)
-def _window(xz, order, start, x, z, half) -> np.ndarray:
-    """Indices of the road returns within the square window of half-size `half` around (x, z)."""
-    i0, j0 = _cell(x - half, z - half, GRID_X[0], GRID_Z[0], CELL, _NX, _NZ)
-    i1, j1 = _cell(x + half, z + half, GRID_X[0], GRID_Z[0], CELL, _NX, _NZ)
+def _window(xz, order, start, x, z, half_x, half_z) -> np.ndarray:
+    """Indices of the road returns within the window of half-sizes half_x, half_z around (x, z)."""
+    i0, j0 = _cell(x - half_x, z - half_z, GRID_X[0], GRID_Z[0], CELL, _NX, _NZ)
+    i1, j1 = _cell(x + half_x, z + half_z, GRID_X[0], GRID_Z[0], CELL, _NX, _NZ)
     n = 0
     for i in range(i0, i1 + 1):
         n += start[i * _NZ + j1 + 1] - start[i * _NZ + j0]
@@ -220,7 +228,7 @@ def _window(xz, order, start, x, z, half) -> np.ndarray:
     for i in range(i0, i1 + 1):
         for t in range(start[i * _NZ + j0], start[i * _NZ + j1 + 1]):
             k = order[t]
-            if abs(xz[k, 0] - x) <= half and abs(xz[k, 1] - z) <= half:
+            if abs(xz[k, 0] - x) <= half_x and abs(xz[k, 1] - z) <= half_z:
                 out[m] = k
                 m += 1
     return out[:m]
@@ -239,12 +247,13 @@ def _lowest_layer(h: np.ndarray) -> float:
 
 
 @numba.njit(cache=True, nogil=True)
-def _local_fit(xz, h, order, start, x, z, half, a, bx, bz) -> tuple[float, float, float, int]:
+def _local_fit(xz, h, order, start, x, z, half_x, half_z, a, bx,
+               bz) -> tuple[float, float, float, int]:
     """Offset and tilt (a, bx, bz) of the road's height above the frame plane around (x, z), by
-    least squares on the window's road returns within INLIER of the plane given (a NaN offset:
+    least squares on the road returns of the window (half-sizes half_x, half_z) within INLIER of the plane given (a NaN offset:
     of the window's lowest layer), three times over, and how many returns gave them. The tilt is
     fitted only where the returns surround (x, z); else the offset is their mean height."""
-    idx = _window(xz, order, start, x, z, half)
+    idx = _window(xz, order, start, x, z, half_x, half_z)
     if len(idx) < MIN_ROAD:
         return 0.0, 0.0, 0.0, 0
     if np.isnan(a):
@@ -287,11 +296,14 @@ def _local_fit(xz, h, order, start, x, z, half, a, bx, bz) -> tuple[float, float
 def _road_at(xz, h, order, start, x, z) -> tuple[float, float, float, bool]:
     """`LocalRoad.plane_at`'s offset and tilt against the frame's plane, and whether a window
     held enough road to give them."""
-    a, bx, bz, n = _local_fit(xz, h, order, start, x, z, WINDOWS[-1], np.nan, 0.0, 0.0)
-    if n < MIN_ROAD:
-        return 0.0, 0.0, 0.0, False
+    big = WINDOWS[-1]
+    a, bx, bz, n = _local_fit(xz, h, order, start, x, z, big, big, np.nan, 0.0, 0.0)
+    if n < MIN_ROAD:  # no square holds road: the one stretched along the range
+        a, bx, bz, n = _local_fit(xz, h, order, start, x, z, FAR_WINDOW[0], FAR_WINDOW[1], np.nan,
+                                  0.0, 0.0)
+        return a, bx, bz, n >= MIN_ROAD
     for half in WINDOWS[:-1]:
-        a2, bx2, bz2, n2 = _local_fit(xz, h, order, start, x, z, half, a, bx, bz)
+        a2, bx2, bz2, n2 = _local_fit(xz, h, order, start, x, z, half, half, a, bx, bz)
         if n2 >= MIN_ROAD:
             return a2, bx2, bz2, True
     return a, bx, bz, True
