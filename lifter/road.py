@@ -250,9 +250,10 @@ def _lowest_layer(h: np.ndarray) -> float:
 def _local_fit(xz, h, order, start, x, z, half_x, half_z, a, bx,
                bz) -> tuple[float, float, float, int]:
     """Offset and tilt (a, bx, bz) of the road's height above the frame plane around (x, z), by
-    least squares on the road returns of the window (half-sizes half_x, half_z) within INLIER of the plane given (a NaN offset:
-    of the window's lowest layer), three times over, and how many returns gave them. The tilt is
-    fitted only where the returns surround (x, z); else the offset is their mean height."""
+    least squares on the road returns of the window (half-sizes half_x, half_z) within INLIER of
+    the plane given (a NaN offset: of the window's lowest layer), three times over, and how many
+    returns gave them. The tilt is fitted only where the returns surround (x, z); else the offset
+    is their mean height."""
     idx = _window(xz, order, start, x, z, half_x, half_z)
     if len(idx) < MIN_ROAD:
         return 0.0, 0.0, 0.0, 0
