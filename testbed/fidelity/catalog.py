@@ -12,7 +12,7 @@ from typing import Callable
 import numpy as np
 
 from .images import CANNY
-from .lidar import GROUND_M
+from .lidar import GROUND_M, NEAR_M
 from .stats import DatasetStats
 
 
@@ -80,6 +80,8 @@ STATS: tuple[Stat, ...] = (
          med("lidar.reflectance_zero")),
     Stat("lidar.ground_share", f"share of ground returns (within {GROUND_M} m of the road plane)",
          "", med("lidar.ground_share")),
+    *(Stat(f"lidar.near_ground_share_{side}", f"share of ground returns within {NEAR_M:.0f} m, {side} "
+           "of the sensor", "", med(f"lidar.near_ground_{side}")) for side in ("left", "right")),
     Stat("lidar.car_points_0_20m", "points on a Car at 0-20 m", "", car_points(0, 20)),
     Stat("lidar.car_points_20_40m", "points on a Car at 20-40 m", "", car_points(20, 40)),
     Stat("lidar.car_points_40_80m", "points on a Car at 40-80 m", "", car_points(40, 80)),

@@ -15,6 +15,7 @@ from .stats import Acc
 
 RINGS = 64
 GROUND_M = 0.2  # a return this close to the fitted road plane is ground
+NEAR_M = 8.0  # m (bird's-eye): the near field, about half of a sweep's returns, split by side
 FAR_M = (40.0, 80.0)
 PERCENTILES = (10, 50, 90, 99)
 
@@ -38,8 +39,13 @@ def lidar_stats(acc: Acc, scan: np.ndarray, calib: Calibration,
     acc.hist("lidar.reflectance", refl)
     _rings(acc, pts)
     rect = calib.lidar_to_rect(pts)
-    height = height_above(rect, fit_ground_plane(rect))
-    acc.put("lidar.ground_share", np.count_nonzero(np.abs(height) < GROUND_M) / len(pts))
+    ground = np.abs(height_above(rect, fit_ground_plane(rect))) < GROUND_M
+    acc.put("lidar.ground_share", np.count_nonzero(ground) / len(pts))
+    # where the ground share comes from: what stands beside the sensor on each side (LiDAR y left)
+    near = np.hypot(pts[:, 0], pts[:, 1]) < NEAR_M
+    for side, m in (("left", near & (pts[:, 1] > 0)), ("right", near & (pts[:, 1] < 0))):
+        if m.any():
+            acc.put(f"lidar.near_ground_{side}", np.count_nonzero(ground[m]) / np.count_nonzero(m))
     if labels is not None:
         _car_points(acc, rect, [o for o in labels if o.type == "Car"])
 

@@ -15,7 +15,7 @@ from kitti.io import atomic_write_text
 from .compare import Comparison, Row
 from .images import CANNY
 from .labels import CLASSES
-from .lidar import GROUND_M
+from .lidar import GROUND_M, NEAR_M
 from .stats import DatasetStats
 
 GROUPS = (("lidar", "LiDAR", "velodyne/"), ("images", "Images", "image_2/"),
@@ -29,7 +29,9 @@ NOTES = f"""\
 - Range is sqrt(x^2 + y^2 + z^2) of the .bin points. Rings come from `kitti.rings.recover_rings(points, 64)`
   for both datasets; a ring's elevation is the median of atan2(z, sqrt(x^2 + y^2)) of its points.
 - Ground returns: within {GROUND_M} m of the road plane fitted by RANSAC to the low returns
-  (`lifter.ground.fit_ground_plane`, rectified camera frame).
+  (`lifter.ground.fit_ground_plane`, rectified camera frame). Near the sensor, the same share
+  among the returns within {NEAR_M:.0f} m (bird's-eye), left (LiDAR y > 0) and right of it: what
+  stands beside the car (parked or passing cars, walls, hedges) takes those returns from the road.
 - Points on a Car: .bin points inside the label's 3D box (velo -> rect with the frame's calib).
 - Images are read with cv2; grey is cv2's BGR2GRAY; dI/dx is the forward difference along x;
   gradient magnitude is sqrt(dx^2 + dy^2) of forward differences; edges are Canny with thresholds

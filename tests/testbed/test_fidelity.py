@@ -14,6 +14,7 @@ from click.testing import CliRunner
 
 from kitti.calib import read_calib
 from kitti.labels import read_label
+from lifter.ground import fit_ground_plane, height_above
 from simgen.generate import generate
 from simgen.spec import load_spec
 from testbed.cmd_fidelity import fidelity
@@ -75,12 +76,17 @@ def test_report_numbers_match_a_hand_computation_on_one_real_frame(real_root, tm
     rgb = iio.imread(t / "image_2/000000.png")[..., :3].astype(np.float64)
     grey = np.round(rgb @ [0.299, 0.587, 0.114])  # ITU-R BT.601, as cv2's BGR2GRAY
     dx = np.abs(np.diff(grey, axis=1))
+    rect = read_calib(t / "calib/000000.txt").lidar_to_rect(scan[:, :3].astype(np.float64))
+    ground = np.abs(height_above(rect, fit_ground_plane(rect))) < 0.2
+    near = np.hypot(scan[:, 0], scan[:, 1]) < 8.0
     hand = {
         "lidar.points_per_sweep": (t / "velodyne/000000.bin").stat().st_size / 16,
         "lidar.beyond_40m_share": np.mean(r > 40),
         "lidar.range_p50_m": np.median(r),
         "lidar.reflectance_zero_share": np.mean(scan[:, 3] == 0),
         "lidar.reflectance_mean": scan[:, 3].astype(np.float64).mean(),
+        "lidar.near_ground_share_left": ground[near & (scan[:, 1] > 0)].mean(),
+        "lidar.near_ground_share_right": ground[near & (scan[:, 1] < 0)].mean(),
         "images.png_bytes": (t / "image_2/000000.png").stat().st_size,
         "images.mean_abs_dx": dx.mean(),
         "images.flat_share": np.mean(dx < 1),
