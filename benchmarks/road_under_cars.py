@@ -14,8 +14,9 @@ import argparse
 import numpy as np
 
 from kitti.dataset import KittiDataset
-from lifter.ground import height_above
-from lifter.methods import Frame, _scan_road
+from lifter.ground import fit_ground_plane, height_above
+from lifter.points import frame_points
+from lifter.road import LocalRoad
 
 SIDES = (("left of x = -6 m", -np.inf, -6.0), ("-6 to 2 m", -6.0, 2.0), ("right of x = 2 m", 2.0, np.inf))
 RANGES = ((0.0, 20.0), (20.0, 35.0), (35.0, 60.0))
@@ -25,8 +26,8 @@ def errors(ds: KittiDataset, ids: list[str]) -> np.ndarray:
     """(x, distance, label bottom above the local road, 1 if the frame's plane) per moderate Car."""
     rows = []
     for fid in ids:
-        calib = ds.calib(fid)
-        road = _scan_road(Frame([], [], calib, ds.image_size(fid), ds.velodyne(fid), None))
+        pts = frame_points(ds.velodyne(fid), ds.calib(fid), None)  # as `fit` builds its road
+        road = LocalRoad(pts.rect, fit_ground_plane(pts.rect), pts.sensor[[0, 2]])
         for o in ds.labels(fid):
             if o.type != "Car" or o.occluded > 1 or o.truncated > 0.3 or o.bbox[3] - o.bbox[1] < 25:
                 continue
