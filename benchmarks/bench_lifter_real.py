@@ -25,6 +25,7 @@ import numpy as np
 from kitti.boxes import wrap_angle
 from kitti.dataset import KittiDataset
 from kitti.eval import evaluate_folders
+from kitti.eval.protocol import outside_difficulty
 from kitti.iou import iou_3d
 from kitti.labels import read_label
 from lifter.pipeline import lift_dataset
@@ -46,7 +47,7 @@ def object_errors(gt, pr) -> dict:
 def _moderate(row: dict) -> bool:
     """KITTI's moderate difficulty (kitti.eval.protocol): 25 px high, occlusion <= 1, truncation
     <= 0.3."""
-    return row["height_px"] >= 25 and row["occ"] <= 1 and row["trunc"] <= 0.3
+    return not outside_difficulty(row["height_px"], row["occ"], row["trunc"], 1)
 
 
 def ap_cap(n_gt: int) -> float:

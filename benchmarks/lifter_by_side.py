@@ -15,9 +15,11 @@ from pathlib import Path
 import numpy as np
 
 from kitti.dataset import KittiDataset
+from kitti.eval.protocol import outside_difficulty
 from kitti.iou import iou_3d
 from kitti.labels import read_label
 
+MODERATE = 1  # kitti.eval.protocol's difficulty index
 BINS = ((-30.0, -6.0), (-6.0, -2.0), (-2.0, 2.0), (2.0, 30.0))  # camera x (m), left negative
 
 
@@ -27,7 +29,8 @@ def rows(ds: KittiDataset, pred: Path) -> np.ndarray:
     for fid in ds.ids():
         preds = read_label(pred / f"{fid}.txt")
         for o in ds.labels(fid):
-            if o.type != "Car" or o.occluded > 1 or o.truncated > 0.3 or o.bbox[3] - o.bbox[1] < 25:
+            if o.type != "Car" or outside_difficulty(o.bbox[3] - o.bbox[1], o.occluded,
+                                                   o.truncated, MODERATE):
                 continue
             m = [p for p in preds if np.allclose(p.bbox, o.bbox, atol=1e-2)]
             if not m:

@@ -14,10 +14,12 @@ import argparse
 import numpy as np
 
 from kitti.dataset import KittiDataset
+from kitti.eval.protocol import outside_difficulty
 from lifter.ground import fit_ground_plane, height_above
 from lifter.points import frame_points
 from lifter.road import LocalRoad
 
+MODERATE = 1  # kitti.eval.protocol's difficulty index
 SIDES = (("left of x = -6 m", -np.inf, -6.0), ("-6 to 2 m", -6.0, 2.0), ("right of x = 2 m", 2.0, np.inf))
 RANGES = ((0.0, 20.0), (20.0, 35.0), (35.0, 60.0))
 
@@ -29,7 +31,8 @@ def errors(ds: KittiDataset, ids: list[str]) -> np.ndarray:
         pts = frame_points(ds.velodyne(fid), ds.calib(fid), None)  # as `fit` builds its road
         road = LocalRoad(pts.rect, fit_ground_plane(pts.rect), pts.sensor[[0, 2]])
         for o in ds.labels(fid):
-            if o.type != "Car" or o.occluded > 1 or o.truncated > 0.3 or o.bbox[3] - o.bbox[1] < 25:
+            if o.type != "Car" or outside_difficulty(o.bbox[3] - o.bbox[1], o.occluded,
+                                                   o.truncated, MODERATE):
                 continue
             x, y, z = o.box7[:3]
             plane = road.plane_at(x, z)

@@ -45,6 +45,14 @@ def min_overlap(cls: str, metric: str, loose: bool = False) -> float:
     return (LOOSE if loose and metric in ("bev", "3d") else STRICT)[key]
 
 
+def outside_difficulty(height_px, occluded, truncated, difficulty: int):
+    """Whether truth boxes (arrays or scalars) are too small, occluded or truncated for a
+    difficulty (0 easy, 1 moderate, 2 hard): what the evaluation ignores."""
+    return ((np.asarray(occluded) > MAX_OCCLUSION[difficulty])
+            | (np.asarray(truncated) > MAX_TRUNCATION[difficulty])
+            | (np.asarray(height_px) < MIN_HEIGHT[difficulty]))
+
+
 def clean(cls: str, difficulty: int, gt_type: np.ndarray, gt_bbox: np.ndarray, gt_occ: np.ndarray,
           gt_trunc: np.ndarray, dt_type: np.ndarray, dt_bbox: np.ndarray
           ) -> tuple[np.ndarray, np.ndarray]:
@@ -56,9 +64,7 @@ def clean(cls: str, difficulty: int, gt_type: np.ndarray, gt_bbox: np.ndarray, g
     nb = NEIGHBOUR.get(c)
     valid = np.where(gt_type == c, 1, np.where(gt_type == nb, 0, -1)) if nb else \
         np.where(gt_type == c, 1, -1)
-    height = gt_bbox[:, 3] - gt_bbox[:, 1]
-    ignore = ((gt_occ > MAX_OCCLUSION[difficulty]) | (gt_trunc > MAX_TRUNCATION[difficulty])
-              | (height < MIN_HEIGHT[difficulty]))
+    ignore = outside_difficulty(gt_bbox[:, 3] - gt_bbox[:, 1], gt_occ, gt_trunc, difficulty)
     ig_gt = np.where((valid == 1) & ~ignore, 0,
                      np.where((valid == 0) | ((valid == 1) & ignore), 1, -1)).astype(np.int8)
     dt_height = np.trunc(np.abs(dt_bbox[:, 1] - dt_bbox[:, 3]))  # int32_t in the devkit
