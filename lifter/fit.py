@@ -409,33 +409,47 @@ def _refine_yaw(best_fit: tuple, box_cost: float, body: np.ndarray, obj: _Return
     pts = body[:: -(-len(body) // MAX_LSHAPE_POINTS)]
     ry0 = best_fit[0]
     n = int(round(SIGMA_YAW_PRIOR / REFINE_STEP))
-    yaws = [float(ry0 + k * REFINE_STEP) for k in range(-n, n + 1) if k]
-    rms = [_rect_rms(pts, y) for y in yaws]
-    rms0 = _rect_rms(pts, ry0)
-    rms_min = min(rms + [rms0])
+    yaws = np.array([ry0] + [float(ry0 + k * REFINE_STEP) for k in range(-n, n + 1) if k])
+    rms = _rect_rms_each(pts, yaws)
+    rms_min = float(rms.min())
+    pre = _yaw_pre(yaws, rms, ry_prior, rms_min)
+    best = [(ry0, *best_fit[1:4], float(pre[0]) + box_cost)]
 
-    def pre(y: float, r: float) -> float:
-        return ((_wrap(2 * (y - ry_prior)) / 2 / SIGMA_YAW_PRIOR) ** 2
-                + (max(r - rms_min, 0.0) / SIGMA_RECT) ** 2)
-
-    cost0 = pre(ry0, rms0) + box_cost
-    best = [(ry0, *best_fit[1:4], cost0)]
-
-    def tried(y: float, r: float) -> None:
-        c = pre(y, r)
+    def tried(y: float, c: float) -> None:
         if c >= best[0][4]:  # its misfit to the 2D box could only add to that
             return
         T, dims, pinned, fit_cost = _box_for_yaw(y, obj, prior, False, box, view, plane)
         if c + fit_cost < best[0][4]:
             best[0] = (_wrap(y), T, dims, pinned, c + fit_cost)
 
-    for y, r in sorted(zip(yaws, rms), key=lambda yr: pre(*yr)):
-        tried(y, r)
+    for k in sorted(range(1, len(yaws)), key=lambda k: pre[k]):
+        tried(float(yaws[k]), float(pre[k]))
     for step in (REFINE_STEP / 2, REFINE_STEP / 4):  # halve the step twice around the best
         y1 = best[0][0]
-        for y in (y1 - step, y1 + step):
-            tried(y, _rect_rms(pts, y))
+        ys = np.array([y1 - step, y1 + step])
+        for y, c in zip(ys.tolist(), _yaw_pre(ys, _rect_rms_each(pts, ys), ry_prior, rms_min).tolist()):
+            tried(y, c)
     return best[0]
+
+
+@numba.njit(cache=True, nogil=True)
+def _yaw_pre(yaws: np.ndarray, rms: np.ndarray, ry_prior: float, rms_min: float) -> np.ndarray:
+    """Step 3b's cost of each yaw before its box is placed: its distance from the network's yaw
+    and how much worse its rectangle fits the returns (RMS `rms`) than the best one's."""
+    out = np.empty(len(yaws))
+    for k in range(len(yaws)):
+        out[k] = ((_wrap(2 * (yaws[k] - ry_prior)) / 2 / SIGMA_YAW_PRIOR) ** 2
+                  + (max(rms[k] - rms_min, 0.0) / SIGMA_RECT) ** 2)
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _rect_rms_each(xz: np.ndarray, yaws: np.ndarray) -> np.ndarray:
+    """`_rect_rms` for each of the yaws."""
+    out = np.empty(len(yaws))
+    for k in range(len(yaws)):
+        out[k] = _rect_rms(xz, yaws[k])
+    return out
 
 
 @numba.njit(cache=True, nogil=True)

@@ -146,6 +146,22 @@ def test_yaw_hypotheses_match_numpy(n, small):
         np.testing.assert_allclose(costs, ref_costs, rtol=1e-9, atol=1e-9)
 
 
+def test_refine_costs_are_the_scalar_ones_bit_for_bit():
+    """Step 3b's batched kernels against `_rect_rms` per yaw and the cost as Python wrote it."""
+    rng = np.random.default_rng(12)
+    for _ in range(10):
+        xz = _car_returns(rng, 300)[0]
+        ry_prior = rng.uniform(-np.pi, np.pi)
+        yaws = rng.uniform(-np.pi, np.pi, 9)
+        rms = fit._rect_rms_each(xz, yaws)
+        assert rms.tolist() == [fit._rect_rms(xz, y) for y in yaws.tolist()]
+        rms_min = float(rms.min())
+        ref = [((fit._wrap(2 * (y - ry_prior)) / 2 / fit.SIGMA_YAW_PRIOR) ** 2
+                + (max(r - rms_min, 0.0) / fit.SIGMA_RECT) ** 2)
+               for y, r in zip(yaws.tolist(), rms.tolist())]
+        assert fit._yaw_pre(yaws, rms, ry_prior, rms_min).tolist() == ref
+
+
 def test_size_and_place_matches_numpy():
     """The kernel against the steps it fuses, as numpy called them (placement's kernels are
     tested on their own in test_placement)."""
@@ -244,6 +260,70 @@ def test_best_assignment_matches_numpy(with_plane):
         T_ref, err_ref = _assignment_ref(o, offs, feet)
         np.testing.assert_allclose(err, err_ref, rtol=1e-9)
         np.testing.assert_allclose(T, T_ref, rtol=1e-9, atol=1e-9)
+
+
+def _alpha_ref(dims, alpha, bbox, plane, iters=8, tol=1e-5):
+    """`solve_from_alpha` as it was written before its iteration became a kernel: `_place` per
+    yaw, numpy's arctan2 and wrap_angle."""
+    o = mono._outline(bbox, CALIB, SIZE, plane, 2, cut_ok=True)
+    ray = mono._pixel_at_depth(P, 0.5 * (bbox[0] + bbox[2]), 0.5 * (bbox[1] + bbox[3]), 10.0)
+    ry = float(wrap_angle(alpha + np.arctan2(ray[0], ray[2])))
+    sol = mono._place(o, dims, ry, (1.0, 1.0))
+    for _ in range(iters):
+        ry_new = float(wrap_angle(alpha + np.arctan2(sol.location[0], sol.location[2])))
+        if abs(wrap_angle(ry_new - ry)) < tol:
+            break
+        ry = ry_new
+        sol = mono._place(o, dims, ry, (1.0, 1.0))
+    return sol
+
+
+def test_alpha_iterations_are_the_placements_bit_for_bit():
+    rng = np.random.default_rng(9)
+    for _ in range(40):
+        plane = _plane(rng)
+        x1, y1 = rng.uniform(-20, 1100), rng.uniform(60, 300)
+        bbox = np.array([x1, y1, x1 + rng.uniform(20, 300), min(y1 + rng.uniform(15, 150), 374.0)])
+        dims, alpha = rng.uniform([1.3, 1.5, 3.5], [1.8, 2.0, 5.0]), rng.uniform(-np.pi, np.pi)
+        sol = mono.solve_from_alpha(dims, alpha, bbox, CALIB, SIZE, plane, cut_ok=True)
+        ref = _alpha_ref(dims, alpha, bbox, plane)
+        assert sol.location.tobytes() == ref.location.tobytes()
+        assert (sol.rotation_y, sol.box_error_px) == (ref.rotation_y, ref.box_error_px)
+
+
+def test_outline_is_reused_only_for_the_same_box_and_road():
+    rng = np.random.default_rng(10)
+    plane = _plane(rng)
+    bbox = np.array([500.0, 170.0, 620.0, 240.0])
+    o = mono._outline(bbox, CALIB, SIZE, plane, 2, False)
+    assert mono._outline(bbox.copy(), CALIB, SIZE, plane.copy(), 2, False) is o
+    other_road = plane + np.array([0.0, 0.0, 0.0, 0.05])
+    moved = bbox + np.array([0.0, 0.0, 0.0, 1.0])
+    for args in ((bbox, other_road, False), (moved, plane, False), (bbox, plane, True),
+                 (bbox, None, False)):
+        fresh = mono._build_outline(args[0], CALIB, SIZE, args[1], 2, args[2])
+        got = mono._outline(args[0], CALIB, SIZE, args[1], 2, args[2])
+        assert got is not o
+        np.testing.assert_array_equal(got.A_pinv, fresh.A_pinv)
+        np.testing.assert_array_equal(got.ground, fresh.ground)
+
+
+def test_height_from_top_matches_numpy():
+    from lifter.placement import HEIGHT_RANGE, height_from_top
+    rng = np.random.default_rng(11)
+    for _ in range(200):
+        T = np.array([rng.uniform(-10, 10), rng.uniform(1.4, 1.9), rng.uniform(5, 60)])
+        dims, ry = rng.uniform([1.3, 1.5, 3.5], [1.8, 2.0, 5.0]), rng.uniform(-np.pi, np.pi)
+        top = rng.uniform(100, 200)
+        h, w, l = dims
+        c, s = np.cos(ry), np.sin(ry)
+        corners = np.array([[l / 2, w / 2], [l / 2, -w / 2], [-l / 2, w / 2], [-l / 2, -w / 2]])
+        x = T[0] + corners[:, 0] * c + corners[:, 1] * s
+        z = T[2] - corners[:, 0] * s + corners[:, 1] * c
+        num = top * (P[2, 0] * x + P[2, 2] * z + P[2, 3]) - (P[1, 0] * x + P[1, 2] * z + P[1, 3])
+        h_ref = T[1] - float(np.max(num / (P[1, 1] - top * P[2, 1])))
+        h_ref = h_ref if HEIGHT_RANGE[0] * h <= h_ref <= HEIGHT_RANGE[1] * h else h
+        assert height_from_top(T, dims, ry, top, P) == h_ref
 
 
 # --- ground and road ------------------------------------------------------------------------
