@@ -15,7 +15,9 @@ Per ray, in order:
    (LidarSpec: dark, grazing and far surfaces drop out first), then the laser's own random
    loss, then range noise (fixed per-laser bias + per-ray Gaussian);
 6. weather echoes (weather.py);
-7. the reported reflectance.
+7. on an onboard rig, the directions the car under the sensor hides return nothing (platform.py:
+   measured on KITTI's scans);
+8. the reported reflectance.
 
 Reported reflectance (constants and the KITTI measurements behind them: LidarSpec). The
 HDL-64E reports a range-compensated intensity: a surface reads about its rho_eff wherever it
@@ -41,6 +43,7 @@ import numpy as np
 
 from ..world import World
 from .kernels import detect_rays, pass_apply, pass_candidates, pass_prepare, read_returns
+from .platform import hidden_rays
 from .rays import RayTable, ray_table
 from .spec import LidarSpec
 from .target import Target, build_target
@@ -179,7 +182,7 @@ def _weather_echoes(world: World, spec: LidarSpec, rng: np.random.Generator, n: 
 
 def _read(spec: LidarSpec, rng: np.random.Generator, beta: float, idx: np.ndarray, r: np.ndarray,
           rho: np.ndarray, need: np.ndarray, v: np.ndarray, rays: RayTable):
-    """Steps 5 (range noise) and 7 (reflectance) of the module docstring (kernels.read_returns):
+    """Steps 5 (range noise) and 8 (reflectance) of the module docstring (kernels.read_returns):
     the (N, 4) points and each return's ring, azimuth and time. Draws one normal per return for
     its range noise (after the uniforms: part of the seed's meaning). `v` (kernels.detect_rays)
     is -1 where the laser reads 0, else a uniform that picks the reading's scatter from
@@ -238,6 +241,9 @@ def scan(world: World, spec: LidarSpec, seed: int | np.random.Generator,
         idx, r, rho, aid = _weather_echoes(world, spec, rng, n, beta, idx, r, rho, aid)
         need = spec.threshold(r)
         v = kept[idx]  # a clutter echo takes its ray's uniform, or reads 0 if the ray had none
+    if world.rig is not None and world.rig.kind == "onboard":  # the car under the sensor hides
+        seen = ~hidden_rays(spec)[idx]
+        idx, r, rho, need, aid, v = (a[seen] for a in (idx, r, rho, need, aid, v))
     points, ring, azimuth, time = _read(spec, rng, beta, idx, r, rho, need, v, rays)
     return LidarScan(points=points, ring=ring, azimuth=azimuth, time=time, actor_id=aid)
 
