@@ -63,8 +63,8 @@ class LidarSpec:
     # its vertical plane (Velodyne's per-laser `vertOffsetCorrection`): a return lies at
     # source + range x direction. Empty: every beam starts at the origin.
     source_offsets_m: tuple[float, ...] = ()
-    # Random loss of a detected return, mean over the lasers (a value kept from before: on the real
-    # scans the loss cannot be told apart from the ego vehicle hiding the lowest lasers' sectors).
+    # Random loss of a detected return, mean over the lasers (a value kept from before; the lowest
+    # lasers' fixed empty sectors on KITTI's scans are its car's, `platform.py`, not this loss).
     dropout: float = 0.02
     # Spread (sd) of the per-laser loss rate around `dropout`, drawn once per unit: the lasers of
     # KITTI's lower block, which all see road or an obstacle at every azimuth, return within
