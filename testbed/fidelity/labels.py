@@ -13,6 +13,13 @@ from .stats import Acc
 
 # The KITTI object classes (DontCare regions are not objects); other types are counted in no class.
 CLASSES = ("Car", "Van", "Truck", "Pedestrian", "Person_sitting", "Cyclist", "Tram", "Misc")
+# The whole KITTI object training set: labels per class in its 7,481 label_2 files (the same counts
+# in every independent tally of the official release). The real dev frames are 11 of them; these
+# say what a frame holds on average over the whole set.
+KITTI_TRAINING_FRAMES = 7481
+KITTI_TRAINING_LABELS = {"Car": 28742, "Van": 2914, "Truck": 1094, "Pedestrian": 4487,
+                         "Person_sitting": 222, "Cyclist": 1627, "Tram": 511, "Misc": 973,
+                         "DontCare": 11295}
 
 
 def label_stats(acc: Acc, labels: list[Object3D], calib: Calibration,
@@ -21,6 +28,7 @@ def label_stats(acc: Acc, labels: list[Object3D], calib: Calibration,
     objs = [o for o in labels if o.type != "DontCare"]
     acc.put("labels.objects", len(objs))
     acc.put("labels.cars", sum(o.type == "Car" for o in objs))
+    acc.put("labels.dontcare", len(labels) - len(objs))
     acc.row("labels.class_counts", [sum(o.type == c for o in objs) for c in CLASSES])
     loc = np.array([o.location for o in objs]).reshape(-1, 3)
     per_object = {

@@ -14,7 +14,7 @@ from kitti.io import atomic_write_text
 
 from .compare import Comparison, Row
 from .images import CANNY
-from .labels import CLASSES
+from .labels import CLASSES, KITTI_TRAINING_FRAMES, KITTI_TRAINING_LABELS
 from .lidar import GROUND_M, NEAR_M
 from .stats import DatasetStats
 
@@ -92,8 +92,10 @@ def to_json(comp: Comparison) -> dict:
         "rings": {k: {n: _per_ring(d, f"lidar.ring_{k}") for n, d in sides.items()}
                   for k in ("returns", "elevation_deg")},
         "objects_per_frame_by_class": {
-            n: (dict(zip(CLASSES, (_num(v) for v in d.rows["labels.class_counts"].mean(axis=0))))
-                if "labels.class_counts" in d.rows else None) for n, d in sides.items()},
+            **{n: (dict(zip(CLASSES, (_num(v) for v in d.rows["labels.class_counts"].mean(axis=0))))
+                   if "labels.class_counts" in d.rows else None) for n, d in sides.items()},
+            "kitti_training_set": {c: KITTI_TRAINING_LABELS[c] / KITTI_TRAINING_FRAMES
+                                   for c in CLASSES}},
     }
 
 
@@ -125,7 +127,32 @@ def _group(comp: Comparison, group: str, title: str, folder: str) -> list[str]:
         out += [f"Rings recovered from azimuth wraps in {_fmt(100 * share['sim'])} % of sim frames "
                 f"and {_fmt(100 * share['real'])} % of real frames (the rest by elevation k-means).", ""]
     rows = [r for r in comp.rows if r.key.startswith(group + ".")]
-    return out + _table(rows) + ["", f"![{group}]({group}.png)", ""]
+    out += _table(rows)
+    if group == "labels":
+        out += [""] + _class_table(comp)
+    return out + ["", f"![{group}]({group}.png)", ""]
+
+
+def _per_frame_by_class(d: DatasetStats) -> np.ndarray | None:
+    rows = d.rows.get("labels.class_counts")
+    return rows.mean(axis=0) if rows is not None and len(rows) else None
+
+
+def _class_table(comp: Comparison) -> list[str]:
+    """Objects a frame by class (mean over frames) beside the whole KITTI training set's."""
+    sim, real = _per_frame_by_class(comp.sim), _per_frame_by_class(comp.real)
+    out = ["Objects a frame by class (mean over frames), beside the whole KITTI object training set "
+           f"({KITTI_TRAINING_FRAMES:,} frames: its label counts over its frames):", "",
+           "| class | sim | real | KITTI training set |", "|---|---:|---:|---:|"]
+    for i, cls in enumerate(CLASSES):
+        cells = [_fmt(float(v[i])) if v is not None else "n/a" for v in (sim, real)]
+        out.append(f"| {cls} | {cells[0]} | {cells[1]} | "
+                   f"{_fmt(KITTI_TRAINING_LABELS[cls] / KITTI_TRAINING_FRAMES)} |")
+    dontcare = [_fmt(float(np.mean(d.get("labels.dontcare")))) if len(d.get("labels.dontcare"))
+                else "n/a" for d in (comp.sim, comp.real)]
+    out.append(f"| DontCare regions | {dontcare[0]} | {dontcare[1]} | "
+               f"{_fmt(KITTI_TRAINING_LABELS['DontCare'] / KITTI_TRAINING_FRAMES)} |")
+    return out
 
 
 def write_report(comp: Comparison, out_dir: str | Path) -> None:
