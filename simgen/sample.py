@@ -25,6 +25,9 @@ from .world import Actor, Appearance, CameraResponse, Light, Weather, World
 
 MARGIN = 0.3  # metres of free space kept around every actor footprint
 VERGE_REACH = 60.0  # cross-street traffic runs from -60 to 60 m across the main road
+# Parked vehicles (curbs and car parks): one Van to ten Cars, as in KITTI's training labels (2,914
+# Vans, 28,742 Cars; the sizes of each class come from the same labels: simgen.meshes.SIZE_STATS).
+PARKED_MIX = {"Car": 0.908, "Van": 0.092}
 # KITTI's VW Passat around its LiDAR (x -2.9 to 1.3 m), plus 5 m of free lane ahead of its bumper.
 EGO_FOOTPRINT = shapely.box(-2.9, -1.0, 6.3, 1.0)
 
@@ -230,7 +233,7 @@ class _Traffic:
         for side in (-1, 1):
             s = self.s_lo + rng.exponential(100.0 / dens)
             while s < self.s_hi:
-                cls = _pick_class({"Car": 0.85, "Van": 0.15}, rng)
+                cls = _pick_class(PARKED_MIX, rng)
                 recipe = _recipe(cls, self.spec, rng)
                 if road.in_cross_street(s, recipe["dims"][2] / 2 + 3.0) or self._in_mouth(
                         side, s, recipe["dims"][2] / 2 + 1.0):  # keep the corners free
@@ -254,7 +257,7 @@ class _Traffic:
         for stall in self.frontage.stalls:
             if rng.uniform() >= occupancy:
                 continue
-            cls = _pick_class({"Car": 0.85, "Van": 0.15}, rng)
+            cls = _pick_class(PARKED_MIX, rng)
             recipe = _recipe(cls, self.spec, rng)
             yaw = rng.choice([0.0, np.pi]) + rng.normal(0, self.sd_yaw)
             turn = np.eye(4)
