@@ -46,7 +46,7 @@ from kitti.boxes import wrap_angle
 from kitti.calib import Calibration
 
 from .clusters import MIN_POINTS, object_returns
-from .mono import contact_of, solve_from_alpha, solve_translation
+from .mono import contact_of, solve_from_alpha, solve_translation, wrap_one
 from .placement import (
     FOCAL_PX,
     MAX_GROW_L,
@@ -122,13 +122,7 @@ def fit_yaw(xz: np.ndarray, ry_prior: float) -> float:
     """The yaw of the rectangle the returns outline, of the four it allows the one nearest ry_prior."""
     theta = _lshape_angle(xz)
     k = np.round((ry_prior - theta) / (np.pi / 2))
-    return _wrap(theta + k * np.pi / 2)
-
-
-@numba.njit(cache=True, nogil=True)
-def _wrap(a: float) -> float:
-    """`kitti.boxes.wrap_angle` of one angle, inside the kernels."""
-    return (a + np.pi) % (2 * np.pi) - np.pi
+    return wrap_one(theta + k * np.pi / 2)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -420,14 +414,15 @@ def _refine_yaw(best_fit: tuple, box_cost: float, body: np.ndarray, obj: _Return
             return
         T, dims, pinned, fit_cost = _box_for_yaw(y, obj, prior, False, box, view, plane)
         if c + fit_cost < best[0][4]:
-            best[0] = (_wrap(y), T, dims, pinned, c + fit_cost)
+            best[0] = (wrap_one(y), T, dims, pinned, c + fit_cost)
 
     for k in sorted(range(1, len(yaws)), key=lambda k: pre[k]):
         tried(float(yaws[k]), float(pre[k]))
     for step in (REFINE_STEP / 2, REFINE_STEP / 4):  # halve the step twice around the best
         y1 = best[0][0]
         ys = np.array([y1 - step, y1 + step])
-        for y, c in zip(ys.tolist(), _yaw_pre(ys, _rect_rms_each(pts, ys), ry_prior, rms_min).tolist()):
+        costs = _yaw_pre(ys, _rect_rms_each(pts, ys), ry_prior, rms_min)
+        for y, c in zip(ys.tolist(), costs.tolist()):
             tried(y, c)
     return best[0]
 
@@ -438,7 +433,7 @@ def _yaw_pre(yaws: np.ndarray, rms: np.ndarray, ry_prior: float, rms_min: float)
     and how much worse its rectangle fits the returns (RMS `rms`) than the best one's."""
     out = np.empty(len(yaws))
     for k in range(len(yaws)):
-        out[k] = ((_wrap(2 * (yaws[k] - ry_prior)) / 2 / SIGMA_YAW_PRIOR) ** 2
+        out[k] = ((wrap_one(2 * (yaws[k] - ry_prior)) / 2 / SIGMA_YAW_PRIOR) ** 2
                   + (max(rms[k] - rms_min, 0.0) / SIGMA_RECT) ** 2)
     return out
 
@@ -464,13 +459,14 @@ def _yaw_hypotheses(body: np.ndarray, ry_prior: float,
         best, perp = np.inf, 0.0  # of the L-shape's other axis, the direction nearest the network's
         for k in range(4):
             p = ry + np.pi / 2 * (1.0 - 2.0 * (k % 2)) + np.pi * (k // 2)
-            if abs(_wrap(p - ry_prior)) < best:
-                best, perp = abs(_wrap(p - ry_prior)), _wrap(p)
+            if abs(wrap_one(p - ry_prior)) < best:
+                best, perp = abs(wrap_one(p - ry_prior)), wrap_one(p)
         # the network's own yaw too: a real car's rounded corners and short L legs can leave the
         # L-shape a few degrees off at hardly any cost in how well a rectangle fits the returns,
         # and the 2D box's sides then show it
         yaws = np.array([ry, ry_prior, perp])
-        offs = np.array([_wrap(2 * (ry - ry_prior)) / 2, 0.0, _wrap(2 * (perp - ry_prior)) / 2])
+        offs = np.array([wrap_one(2 * (ry - ry_prior)) / 2, 0.0,
+                         wrap_one(2 * (perp - ry_prior)) / 2])
         if abs(offs[0]) < SAME_YAW:  # the L-shape agrees with the network: nothing to weigh
             yaws, offs = yaws[::2].copy(), offs[::2].copy()
     pts = body[:: -(-len(body) // MAX_LSHAPE_POINTS)]

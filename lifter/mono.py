@@ -331,8 +331,8 @@ def solve_from_alpha(dims: np.ndarray, alpha: float, bbox: np.ndarray, calib: Ca
 
 
 @numba.njit(cache=True, nogil=True)
-def _wrap_angle(a: float) -> float:
-    """`kitti.boxes.wrap_angle` of one angle, inside the kernels."""
+def wrap_one(a: float) -> float:
+    """`kitti.boxes.wrap_angle` of one angle, inside the kernels (the same arithmetic)."""
     return (a + np.pi) % (2 * np.pi) - np.pi
 
 
@@ -348,8 +348,8 @@ def _alpha_iterations(rows, on_feet, A_pinv, plane_rhs, combos, bottom_col, grou
     T, err = _best_assignment(rows, on_feet, A_pinv, plane_rhs, combos, bottom_col, ground, offs,
                               feet, P, W, H, bbox)
     for _ in range(iters):
-        ry_new = _wrap_angle(alpha + np.arctan2(T[0], T[2]))
-        if abs(_wrap_angle(ry_new - ry)) < tol:
+        ry_new = wrap_one(alpha + np.arctan2(T[0], T[2]))
+        if abs(wrap_one(ry_new - ry)) < tol:
             break
         ry = ry_new
         offs = _standing(h, w, l, ry, up)

@@ -98,7 +98,7 @@ def test_closeness_and_wrap_match_numpy():
     ref = (1.0 / np.maximum(d, fit.LSHAPE_D0)).sum(axis=1)
     np.testing.assert_allclose(fit._closeness(xz, thetas), ref, rtol=1e-12)
     for angle in rng.uniform(-20, 20, 200):
-        assert fit._wrap(angle) == wrap_angle(angle)
+        assert mono.wrap_one(angle) == wrap_angle(angle)
 
 
 def _rect_rms_ref(xz, ry):
@@ -156,7 +156,7 @@ def test_refine_costs_are_the_scalar_ones_bit_for_bit():
         rms = fit._rect_rms_each(xz, yaws)
         assert rms.tolist() == [fit._rect_rms(xz, y) for y in yaws.tolist()]
         rms_min = float(rms.min())
-        ref = [((fit._wrap(2 * (y - ry_prior)) / 2 / fit.SIGMA_YAW_PRIOR) ** 2
+        ref = [((mono.wrap_one(2 * (y - ry_prior)) / 2 / fit.SIGMA_YAW_PRIOR) ** 2
                 + (max(r - rms_min, 0.0) / fit.SIGMA_RECT) ** 2)
                for y, r in zip(yaws.tolist(), rms.tolist())]
         assert fit._yaw_pre(yaws, rms, ry_prior, rms_min).tolist() == ref
