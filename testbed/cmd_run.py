@@ -77,7 +77,7 @@ def draw_examples(p, results, folder: Path, n: int) -> list[Path]:
 
     from .draw import MIN_SCORE, draw_frame, plt
     from .stages import is_done
-    from .sweep import models_key
+    from .sweep import generator_key, models_key
 
     chosen = None
     for pt, _ in results:  # prefer fit on 64 beams with detector boxes, else the first point
@@ -87,9 +87,10 @@ def draw_examples(p, results, folder: Path, n: int) -> list[Path]:
     chosen = chosen or (results[0][0] if results else None)
     if chosen is None or n == 0:
         return []
-    data = (p.root / chosen.scene / "scans" / chosen.scan.key if chosen.scan
-            else p.root / chosen.scene / "base")
-    point_dir = p.points_dir(models_key()) / chosen.key
+    generator = generator_key()
+    data = (p.scan_dir(chosen.scene, generator, chosen.scan) if chosen.scan
+            else p.base_dir(chosen.scene, generator))
+    point_dir = p.points_dir(f"{generator}-{models_key()}") / chosen.key
     pred = point_dir / "pred"
     if not is_done(point_dir):
         return []

@@ -153,6 +153,14 @@ class Plan:
         """Lifted boxes and evaluations, per set of model weights."""
         return self.root / f"points-{models}"
 
+    def base_dir(self, scene: str, generator: str) -> Path:
+        """A scene's generated frames, per version of the generator (`generator_key`)."""
+        return self.root / scene / f"base-{generator}"
+
+    def scan_dir(self, scene: str, generator: str, scan: ScanConfig) -> Path:
+        """One scan configuration of a scene's worlds, per version of the generator."""
+        return self.root / scene / f"scans-{generator}" / scan.key
+
 
 def plan(spec: SweepSpec, root: Path | None = None) -> Plan:
     """All scan configurations and points of the sweep, in a fixed order."""
@@ -196,32 +204,47 @@ def rescan_request(c: ScanConfig) -> RescanRequest:
     return RescanRequest(LidarSection(preset=name, beams=beams, max_range=c.max_range), weather)
 
 
+def _code(*packages) -> list[Path]:
+    """Every Python file of the packages, in a fixed order."""
+    return [f for pkg in packages for f in sorted(Path(pkg.__file__).parent.rglob("*.py"))]
+
+
 def models_key() -> str:
-    """Digest of the shipped detector and lifter weights and of the two packages' code: results
-    made with other weights or another version of the detector or the lifter are never taken from
-    the cache."""
+    """Digest of the shipped detector and lifter weights and of their code (and the evaluation's,
+    in kitti): results made with other weights or another version of the detector, the lifter or
+    the metric are never taken from the cache."""
     import detector
+    import kitti
     import lifter
     from detector.infer import DEFAULT_WEIGHTS as DETECTOR
     from lifter.predictor import DEFAULT_WEIGHTS as LIFTER
 
-    code = [f for pkg in (detector, lifter) for f in sorted(Path(pkg.__file__).parent.glob("*.py"))]
-    return stages.digest(DETECTOR, LIFTER, *code)
+    return stages.digest(DETECTOR, LIFTER, *_code(detector, lifter, kitti))
+
+
+def generator_key() -> str:
+    """Digest of the scene generator's code (simgen, and kitti, which writes the files): frames and
+    scans made by another version of the generator are never taken from the cache."""
+    import kitti
+    import simgen
+
+    return stages.digest(*_code(simgen, kitti))
 
 
 def execute(p: Plan, backend: Backend) -> list[tuple[Point, dict]]:
     """Run every stage not yet marked done on `backend`; return each point with its evaluation."""
     spec = p.spec
-    models = models_key()
+    models, generator = models_key(), generator_key()
     bases, detections = {}, {}
     for scene in spec.scenes:
         name = scene_name(scene)
-        bases[name] = stages.generate(scene.spec, p.root / name / "base", scene.frames, scene.seed,
-                                      backend)
+        bases[name] = stages.generate(scene.spec, p.base_dir(name, generator), scene.frames,
+                                      scene.seed, backend)
         if "detector" in spec.axes.boxes:
-            detections[name] = stages.detect(bases[name], p.root / name / f"detections-{models}",
+            detections[name] = stages.detect(bases[name],
+                                             p.root / name / f"detections-{generator}-{models}",
                                              spec.split)
-    scan_dirs = {(n, c): p.root / n / "scans" / c.key for n in bases for c in p.scans}
+    scan_dirs = {(n, c): p.scan_dir(n, generator, c) for n in bases for c in p.scans}
     stages.rescan([stages.Rescan(bases[n], d, rescan_request(c))
                    for (n, c), d in scan_dirs.items() if c.mode == "native"], backend)
     stages.reduce_beams([stages.Reduction(scan_dirs[n, c.parent()], d, c.beams)
@@ -230,7 +253,8 @@ def execute(p: Plan, backend: Backend) -> list[tuple[Point, dict]]:
     for pt in p.points:
         data = scan_dirs[pt.scene, pt.scan] if pt.scan else bases[pt.scene]
         dets = detections[pt.scene] if pt.boxes == "detector" else None
-        jobs.append(stages.LiftJob(data, dets, pt.method, spec.split, p.points_dir(models) / pt.key,
+        jobs.append(stages.LiftJob(data, dets, pt.method, spec.split,
+                                   p.points_dir(f"{generator}-{models}") / pt.key,
                                    tuple(spec.range_bins)))
     results = backend.map(stages.lift_and_evaluate, jobs, desc="points")
     return list(zip(p.points, results))

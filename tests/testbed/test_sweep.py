@@ -143,3 +143,20 @@ def test_cached_results_are_keyed_by_the_lifter_code(tmp_path, monkeypatch):
     assert models_key() == before
     (pkg / "fit.py").write_text((pkg / "fit.py").read_text() + "\n# changed\n")
     assert models_key() != before
+
+
+def test_cached_frames_are_keyed_by_the_generator_code(tmp_path, monkeypatch):
+    """A change to the scene generator's code, in a subpackage too, gives new frame and scan
+    folders: a run or sweep never reuses frames an older generator made."""
+    import simgen
+    from testbed.sweep import generator_key
+    src = Path(simgen.__file__).parent
+    pkg = tmp_path / "simgen"
+    for f in src.rglob("*.py"):
+        (pkg / f.relative_to(src)).parent.mkdir(parents=True, exist_ok=True)
+        (pkg / f.relative_to(src)).write_bytes(f.read_bytes())
+    monkeypatch.setattr(simgen, "__file__", str(pkg / "__init__.py"))
+    before = generator_key()
+    assert generator_key() == before
+    (pkg / "lidar" / "scan.py").write_text((pkg / "lidar" / "scan.py").read_text() + "\n# changed\n")
+    assert generator_key() != before
