@@ -92,8 +92,8 @@ def to_json(comp: Comparison) -> dict:
         "rings": {k: {n: _per_ring(d, f"lidar.ring_{k}") for n, d in sides.items()}
                   for k in ("returns", "elevation_deg")},
         "objects_per_frame_by_class": {
-            **{n: (dict(zip(CLASSES, (_num(v) for v in d.rows["labels.class_counts"].mean(axis=0))))
-                   if "labels.class_counts" in d.rows else None) for n, d in sides.items()},
+            **{n: None if (v := _per_frame_by_class(d)) is None else dict(zip(CLASSES, map(_num, v)))
+               for n, d in sides.items()},
             "kitti_training_set": {c: KITTI_TRAINING_LABELS[c] / KITTI_TRAINING_FRAMES
                                    for c in CLASSES}},
     }
