@@ -47,14 +47,14 @@ def render_breakdown(spec, n: int) -> None:
         color, _ = r.render(scene, flags=flags)
         t2 = time.perf_counter()
         ids, depth = r.render(scene, flags=RenderFlags.SEG, seg_node_map=seg)
+        inst = ids[..., 0].astype(np.uint16) + 256 * ids[..., 1].astype(np.uint16)
         t3 = time.perf_counter()
         lit = bool(flags & RenderFlags.RGBA)
-        rgb = shade(w, color, depth, casters) if lit else color[..., :3]
+        rgb = shade(w, color, depth, inst, casters) if lit else color[..., :3]
         t4 = time.perf_counter()
         apply_look(rgb, depth, w.rig.intrinsics(), w.weather, w.light, w.sensor,
                    factor_rng(0, 0, "look"), HEADROOM if lit else 1.0, w.camera)
         t5 = time.perf_counter()
-        inst = ids[..., 0].astype(np.uint16) + 256 * ids[..., 1].astype(np.uint16)
         derive(w, inst, spec.labels)
         t6 = time.perf_counter()
         for k, a, b in (("build", t0, t1), ("colour", t1, t2), ("seg+depth", t2, t3),

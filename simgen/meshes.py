@@ -84,6 +84,10 @@ RIM_PROUD = 0.008
 # EU number plates: 520 x 110 mm (DIN 74069).
 PLATE_W, PLATE_H = 0.52, 0.11
 ROOF = 0.05  # m: roof panel over the glass
+# The rear window's sides: body-coloured C pillars seen from behind, each REAR_PILLAR of the
+# glass face's width (read off makers' rear views, Golf VI and Passat B7; no survey). Without
+# them the whole back of the cabin is glass, which no real car shows.
+REAR_PILLAR = 0.10
 
 # The emissive look of lamp materials at night (renderer): name -> linear RGB emission.
 EMISSIVE = {"headlight": (4.0, 4.0, 3.6), "taillight": (2.5, 0.05, 0.05)}
@@ -353,7 +357,21 @@ def _car_body(rng, k: _CarLayout, c: Material) -> list[Part]:
     roof = _box(roof_r - 0.01, roof_f + 0.01, -yt - 0.01, yt + 0.01, top - 0.01, k.h)
     pillars = [_on_side(s, *band, yb, yt, zb, top) for s in (-1, 1)
                for band in _pillars(rng, k.style, k.cowl, k.glass_end, roof_f, roof_r)]
-    return [Part(lower, c), Part(cabin, GLASS), Part(roof, c), *[Part(m, c) for m in pillars]]
+    rear = np.array([[k.glass_end, yb, zb], [k.glass_end, -yb, zb], [roof_r, -yt, top], [roof_r, yt, top]])
+    return [Part(lower, c), Part(cabin, GLASS), Part(roof, c),
+            *[Part(m, c) for m in pillars + _rear_pillars(rear, REAR_PILLAR)]]
+
+
+def _rear_pillars(quad: np.ndarray, share: float) -> list[Shape]:
+    """Bands up both sides of the rear glass face (its corners: bottom two, then the top two
+    above them, counter-clockwise seen from behind), `share` of its width each, on the face's
+    plane and standing 12 mm proud of the glass: a convex slab each, as every part is."""
+    b0, b1, t1, t0 = quad
+    n = np.cross(b1 - b0, t0 - b0)
+    n /= np.linalg.norm(n)
+    bands = [np.array([b0, b0 + share * (b1 - b0), t0 + share * (t1 - t0), t0]),
+             np.array([b1 - share * (b1 - b0), b1, t1, t1 - share * (t1 - t0)])]
+    return [hexahedron(np.concatenate([q - 0.005 * n, q + 0.012 * n])) for q in bands]
 
 
 def _car_ends(rng, k: _CarLayout, l: float) -> list[Part]:

@@ -9,7 +9,8 @@ the static world is one draw call per texture.
 The lit looks (day, dusk) are shaded per face on the CPU and drawn unlit (see _Shader); on top
 of that the surfaces wear procedural textures (simgen.textures) mapped from world coordinates,
 the sky is a dome with a gradient and clouds, car paint and glass mirror the sky with Fresnel's
-reflectance, and the sun casts shadows (simgen.shadows) from the same meshes the LiDAR sees.
+reflectance, and the sun casts shadows (simgen.shadows) from the same meshes the LiDAR sees;
+actors also hide part of the sky from the ground under and beside them (skylight occlusion).
 The colour pass keeps HEADROOM over the unit of radiance so that the camera (simgen.camera),
 not the 8-bit framebuffer, decides what saturates.
 
@@ -36,7 +37,7 @@ from . import textures  # noqa: E402
 from .camera import LUMA  # noqa: E402
 from .factors import factor_rng  # noqa: E402
 from .meshes import EMISSIVE  # noqa: E402
-from .shadows import Occluders, sun_shadow  # noqa: E402
+from .shadows import Occluders, Reach, sky_occlusion, sun_shadow  # noqa: E402
 from .world import Part, World  # noqa: E402
 
 ZNEAR, ZFAR = 0.3, 400.0
@@ -80,6 +81,19 @@ class RenderOutput:
     depth: np.ndarray  # (H, W) float32 camera-2 z in metres, 0 where no surface
     instance: np.ndarray  # (H, W) uint16 actor id, 0 = background
     headroom: float = 1.0  # linear radiance of a colour value of 255
+
+
+@dataclass
+class Casters:
+    """What can darken the lit colour pass: the static world's and the actors' triangles
+    (world frame), and where each actor can hide the sky."""
+
+    static: Occluders
+    actors: Occluders
+    reach: Reach
+
+    def every(self) -> Occluders:
+        return Occluders.join(self.static, self.actors)
 
 
 class _ExactCamera(pyrender.IntrinsicsCamera):
@@ -299,17 +313,29 @@ def _lamp_mesh(part: Part, material) -> pyrender.Mesh:
     return pyrender.Mesh([_primitive(tris, normals, np.ones((len(tris), 4)), material)])
 
 
+_WALL_DIRECTION, _WALL_OFFSET = 1e-4, 0.01  # faces this close in direction (unit vector) and offset (m) share a wall
+
+
 def _facade_uv(tris: np.ndarray, normals: np.ndarray, tile: tuple[float, float],
                shift: float) -> np.ndarray:
-    """Texture coordinates of vertical wall rectangles (two triangles sharing a diagonal): a
-    whole number of window bays across each wall, storeys counted from the wall's foot."""
+    """Texture coordinates of vertical walls: a whole number of window bays across each wall,
+    storeys counted from the wall's lowest point. A wall is every face in one vertical plane (the
+    same horizontal normal and offset): a draped wall (simgen.relief) is split along its length
+    and its foot follows the road, so per-triangle extents would cut the windows apart."""
     t = np.c_[-normals[:, 1], normals[:, 0]]
     t /= np.maximum(np.linalg.norm(t, axis=1, keepdims=True), 1e-9)
     s = np.einsum("fkj,fj->fk", tris[..., :2], t)
-    s0, width = s.min(axis=1, keepdims=True), np.ptp(s, axis=1)[:, None]
+    offset = np.einsum("fj,fj->f", tris[:, 0, :2], np.c_[t[:, 1], -t[:, 0]])
+    key = np.c_[np.round(t / _WALL_DIRECTION), np.round(offset / _WALL_OFFSET)] + 0.0  # no -0.0
+    wall = np.unique(key, axis=0, return_inverse=True)[1].ravel()
+    lo, hi, foot = (np.full(wall.max() + 1, x) for x in (np.inf, -np.inf, np.inf))
+    np.minimum.at(lo, wall, s.min(axis=1))
+    np.maximum.at(hi, wall, s.max(axis=1))
+    np.minimum.at(foot, wall, tris[..., 2].min(axis=1))
+    s0, width = lo[wall][:, None], (hi - lo)[wall][:, None]
     bays = np.maximum(1.0, np.round(width / textures.BAY_M))
     u = (s - s0) / np.maximum(width, 1e-9) * bays * textures.BAY_M / tile[0] + shift
-    v = (tris[..., 2] - tris[..., 2].min(axis=1, keepdims=True)) / tile[1]
+    v = (tris[..., 2] - foot[wall][:, None]) / tile[1]
     return np.stack([u, v], axis=2)
 
 
@@ -411,9 +437,9 @@ def _seg_code(actor_id: int) -> tuple[int, int, int]:
     return (actor_id % 256, actor_id // 256, 0)
 
 
-def build_scene(world: World) -> tuple[pyrender.Scene, dict, int, Occluders]:
+def build_scene(world: World) -> tuple[pyrender.Scene, dict, int, Casters]:
     """The pyrender scene of a world at t = 0, its segmentation map (node -> colour), the render
-    flags of its colour pass and its triangles as shadow casters (world frame)."""
+    flags of its colour pass and what darkens that pass (shadow casters, the actors' reach)."""
     light = world.light
     rig = world.rig
     cam2_from_world = rig.cam2_from_world()
@@ -463,7 +489,11 @@ def build_scene(world: World) -> tuple[pyrender.Scene, dict, int, Occluders]:
                                          innerConeAngle=0.15, outerConeAngle=0.45), pose=p)
     flags = {"pbr": RenderFlags.NONE, "thermal": RenderFlags.FLAT,
              "lit": RenderFlags.FLAT | RenderFlags.RGBA}[shader.mode]
-    return scene, seg, flags, Occluders.join(casters, actor_casters)
+    boxes = [np.concatenate([p.mesh.vertices for p in a.parts]) for a in world.actors]
+    reach = Reach(np.array([np.linalg.inv(a.pose) for a in world.actors]).reshape(-1, 4, 4),
+                  np.array([v.min(axis=0) for v in boxes]).reshape(-1, 3),
+                  np.array([v.max(axis=0) for v in boxes]).reshape(-1, 3))
+    return scene, seg, flags, Casters(casters, actor_casters, reach)
 
 
 def _shade_tint(time: str) -> np.ndarray:
@@ -473,22 +503,38 @@ def _shade_tint(time: str) -> np.ndarray:
     return (sky / (sky @ LUMA)) ** (1 / 2.2)
 
 
-def shade(world: World, color: np.ndarray, depth: np.ndarray, casters: Occluders) -> np.ndarray:
-    """The lit colour pass (RGBA, alpha = the light left in shadow) with the sun's shadows
-    applied, as (H, W, 3) uint8."""
+_LINEAR = ((np.arange(256) / 255.0) ** 2.2).astype(np.float32)  # gamma-encoded 8-bit value -> linear
+
+
+def shade(world: World, color: np.ndarray, depth: np.ndarray, instance: np.ndarray,
+          casters: Casters) -> np.ndarray:
+    """The lit colour pass (RGBA, alpha = the light left in shadow) with the sun's shadows and the
+    actors' occlusion of the sky on the ground (instance 0) applied, as (H, W, 3) uint8."""
     rgb = color[..., :3]
     if not world.appearance.shadows:
         return rgb
     rig = world.rig
-    depth_of_shadow = sun_shadow(casters, depth, rig.intrinsics(), rig.cam2_from_world(),
-                                 _to_sun(world.light), color[..., 3] < 250)
-    # Only shadowed pixels change (elsewhere the factor is exactly 1): the same arithmetic on them.
+    K, cam2_from_world = rig.intrinsics(), rig.cam2_from_world()
+    sun = sun_shadow(casters.every(), depth, K, cam2_from_world, _to_sun(world.light), color[..., 3] < 250)
+    sky = sky_occlusion(casters.actors, casters.reach, depth, instance == 0, K, cam2_from_world)
+    # Only darkened pixels change (elsewhere the factor is exactly 1).
     out = np.array(rgb)
-    shadowed = depth_of_shadow != 0
-    rest = color[shadowed][:, 3:4].astype(np.float32) / 255.0 * _shade_tint(world.light.time)
-    factor = 1.0 - depth_of_shadow[shadowed][:, None] * (1.0 - rest)
-    out[shadowed] = np.clip(np.round(rgb[shadowed] * factor), 0, 255).astype(np.uint8)
+    hit = np.flatnonzero((sun != 0) | (sky != 0))
+    flat = out.reshape(-1, 3)
+    flat[hit] = darken(flat[hit], color[..., 3].ravel()[hit], sun.ravel()[hit], sky.ravel()[hit],
+                       (_shade_tint(world.light.time) ** 2.2).astype(np.float32))
     return out
+
+
+def darken(rgb: np.ndarray, alpha: np.ndarray, sun: np.ndarray, sky: np.ndarray,
+           tint: np.ndarray) -> np.ndarray:
+    """(N, 3) uint8 gamma-encoded colours with the light that shadow and sky occlusion take
+    away. In linear light, per channel: a share r of the light is the sky's (alpha, gamma-encoded,
+    times the linear `tint`, skylight being bluer than the sun); occlusion `sky` cuts that share,
+    shadow depth `sun` the rest."""
+    r = np.minimum(_LINEAR[alpha][:, None] * tint, np.float32(1.0))
+    left = (1.0 - sun[:, None]) * (1.0 - r) + (1.0 - sky[:, None]) * r
+    return np.clip(np.round(rgb * np.power(left, np.float32(1 / 2.2))), 0, 255).astype(np.uint8)
 
 
 def render(world: World) -> RenderOutput:
@@ -501,6 +547,6 @@ def render(world: World) -> RenderOutput:
     ids, depth = r.render(scene, flags=RenderFlags.SEG, seg_node_map=seg)
     instance = ids[..., 0].astype(np.uint16) + 256 * ids[..., 1].astype(np.uint16)
     lit = bool(flags & RenderFlags.RGBA)
-    rgb = shade(world, color, depth, casters) if lit else color[..., :3]
+    rgb = shade(world, color, depth, instance, casters) if lit else color[..., :3]
     return RenderOutput(np.ascontiguousarray(rgb), depth.astype(np.float32), instance,
                         HEADROOM if lit else 1.0)

@@ -10,6 +10,11 @@ the grid's stair steps) is no worse than the real one.
 Leaves let sunlight through: a crown's closed mesh is crossed twice by a ray, and urban
 broadleaf crowns pass 10-30 % of direct sun (simgen.materials, FOLIAGE), so a shadow cast by a
 porous part is (1 - porosity ** 2) deep.
+
+Skylight is occluded too: the road under and beside a vehicle sees only part of the sky, so even
+out of the sun it is darker than open road (the dark band under every real car's bumper, deepest
+between its wheels). `sky_occlusion` measures, for ground points near an actor, the share of
+cosine-weighted sky that the actors' meshes hide, with a fixed set of rays per point.
 """
 
 from __future__ import annotations
@@ -30,6 +35,14 @@ from .world import Part
 STEP = 3  # pixels between shadow rays
 SOFTEN = 0.8  # ray-grid cells: a Gaussian that hides the grid's stair steps along shadow edges
 T_NEAR = 0.05  # m: a ray starts this far from its surface point (depth precision, flat facets)
+# Skylight occlusion varies over the clearance under a vehicle (0.1-0.3 m: 15-40 px at 10 m), far
+# more slowly than a shadow's edge: a coarser grid of points, each with SKY_RAYS rays.
+SKY_STEP = 6
+SKY_RAYS = 32
+# A box of height H hides at most (1 - d / sqrt(d^2 + H^2)) / 2 of the sky from a point d beside
+# it (an infinitely long wall): 0.05 at d = 2 H, less beside a box of finite length; beyond that
+# reach the occlusion is left out.
+SKY_REACH = 2.0
 
 
 # Embree 4's enums (rtcore_common.h, rtcore_buffer.h) for one triangle geometry.
@@ -123,6 +136,13 @@ class Occluders:
             return Occluders(tris, depth)
         return Occluders(tris, depth, vertices, faces)
 
+    def scene(self) -> EmbreeScene:
+        """An Embree scene of the triangles."""
+        if self.faces is not None:
+            return embree_scene(self.vertices, self.faces)
+        corners = self.tris.reshape(-1, 3)  # unshared, as embreex's TriangleMesh makes of (F, 3, 3)
+        return embree_scene(corners, np.arange(len(corners)).reshape(-1, 3))
+
     @staticmethod
     def join(a: Occluders, b: Occluders) -> Occluders:
         if not len(a.tris) or not len(b.tris):
@@ -132,6 +152,14 @@ class Occluders:
         return Occluders(np.concatenate([a.tris, b.tris]), np.concatenate([a.depth, b.depth]),
                          np.concatenate([a.vertices, b.vertices]),
                          np.concatenate([a.faces, b.faces + np.int32(len(a.vertices))]))
+
+
+def _world_points(u: np.ndarray, v: np.ndarray, z: np.ndarray, K: np.ndarray,
+                  cam2_from_world: np.ndarray) -> np.ndarray:
+    """(N, 3) world points seen at pixels (u, v) with depth z."""
+    zc = z.astype(np.float64)
+    cam = np.stack([(u - K[0, 2]) * zc / K[0, 0], (v - K[1, 2]) * zc / K[1, 1], zc, np.ones_like(zc)])
+    return (np.linalg.inv(cam2_from_world) @ cam)[:3].T
 
 
 def sun_shadow(occluders: Occluders, depth: np.ndarray, K: np.ndarray, cam2_from_world: np.ndarray,
@@ -148,18 +176,79 @@ def sun_shadow(occluders: Occluders, depth: np.ndarray, K: np.ndarray, cam2_from
     small = np.zeros(z.shape, np.float32)
     if not need.any() or to_sun[2] <= 0:
         return np.zeros((H, W), np.float32)
-    zc = z[need].astype(np.float64)
-    cam = np.stack([(u[need] - K[0, 2]) * zc / K[0, 0], (v[need] - K[1, 2]) * zc / K[1, 1], zc,
-                    np.ones_like(zc)])
-    points = (np.linalg.inv(cam2_from_world) @ cam)[:3].T
-    if occluders.faces is not None:
-        scene = embree_scene(occluders.vertices, occluders.faces)
-    else:  # unshared corners, as embreex's TriangleMesh makes of (F, 3, 3) triangles
-        corners = occluders.tris.reshape(-1, 3)
-        scene = embree_scene(corners, np.arange(len(corners)).reshape(-1, 3))
+    points = _world_points(u[need], v[need], z[need], K, cam2_from_world)
+    scene = occluders.scene()
     origins = (points + T_NEAR * to_sun).astype(np.float32)
     dirs = np.broadcast_to(to_sun.astype(np.float32), origins.shape).copy()
     prim = scene.run(origins, dirs)
     small[need] = np.where(prim >= 0, occluders.depth[np.maximum(prim, 0)], 0.0)
     small = cv2.GaussianBlur(small, (0, 0), SOFTEN)
     return cv2.resize(small, (W, H), interpolation=cv2.INTER_LINEAR) * (depth > 0)
+
+
+def sky_directions(n: int = SKY_RAYS) -> np.ndarray:
+    """(n, 3) unit directions about +z, cosine-weighted: points spread evenly over the unit disk
+    (the golden-angle spiral) lifted onto the hemisphere (Malley's method), so every ray stands for
+    the same share of the skylight a horizontal surface receives."""
+    k = np.arange(n) + 0.5
+    r, phi = np.sqrt(k / n), k * np.pi * (3.0 - np.sqrt(5.0))
+    return np.c_[r * np.cos(phi), r * np.sin(phi), np.sqrt(1.0 - r ** 2)]
+
+
+@dataclass
+class Reach:
+    """Where actors can hide sky: each one's box (actor frame, lo and hi corners) and pose."""
+
+    actor_from_world: np.ndarray  # (A, 4, 4)
+    lo: np.ndarray  # (A, 3)
+    hi: np.ndarray  # (A, 3)
+
+    def near(self, points: np.ndarray) -> np.ndarray:
+        """(N,) bool: world points within SKY_REACH box heights of some box in plan view, not
+        above it nor more than a metre below it (a road that falls away beside a wheel). Each
+        box is first tested by the world-axes bounds of its reach."""
+        if not len(self.lo):
+            return np.zeros(len(points), bool)
+        m = SKY_REACH * (self.hi[:, 2] - self.lo[:, 2])
+        lo, hi = self.lo - np.c_[m, m, np.full_like(m, 1.0)], self.hi + np.c_[m, m, 0 * m]
+        corners = np.stack([np.where([i & 1, i & 2, i & 4], hi, lo) for i in range(8)], axis=1)
+        world_from_actor = np.linalg.inv(self.actor_from_world)
+        world = np.einsum("aij,akj->aki", world_from_actor[:, :3, :3], corners) + world_from_actor[:, None, :3, 3]
+        wlo, whi = world.min(axis=1), world.max(axis=1)
+        pi, ai = np.nonzero(np.all((points[:, None] >= wlo[None]) & (points[:, None] <= whi[None]), axis=2))
+        a = self.actor_from_world[ai]
+        local = np.einsum("kij,kj->ki", a[:, :3, :3], points[pi]) + a[:, :3, 3]
+        inside = np.all((local > lo[ai]) & (local < hi[ai]), axis=1)
+        out = np.zeros(len(points), bool)
+        out[pi[inside]] = True
+        return out
+
+
+def sky_occlusion(occluders: Occluders, reach: Reach, depth: np.ndarray, ground: np.ndarray,
+                  K: np.ndarray, cam2_from_world: np.ndarray) -> np.ndarray:
+    """(H, W) float32 share of the sky (cosine-weighted about world up) that `occluders` hide
+    from the surface seen at each `ground` pixel; 0 elsewhere and beyond every actor's reach."""
+    H, W = depth.shape
+    if not len(occluders.tris) or not len(reach.lo):
+        return np.zeros((H, W), np.float32)
+    v, u = np.mgrid[SKY_STEP // 2:H:SKY_STEP, SKY_STEP // 2:W:SKY_STEP]
+    need = ground[v, u] & (depth[v, u] > 0)
+    points = _world_points(u[need], v[need], depth[v, u][need], K, cam2_from_world)
+    close = reach.near(points)
+    small = np.zeros(v.shape, np.float32)
+    if close.any():
+        dirs = sky_directions().astype(np.float32)
+        origins = (points[close] + [0.0, 0.0, T_NEAR]).astype(np.float32)
+        prim = occluders.scene().run(np.repeat(origins, len(dirs), axis=0), np.tile(dirs, (len(origins), 1)))
+        hidden = np.where(prim >= 0, occluders.depth[np.maximum(prim, 0)], 0.0).reshape(-1, len(dirs))
+        idx = np.flatnonzero(need.ravel())[close]
+        small.ravel()[idx] = hidden.mean(axis=1)
+    # Upsampled bilinearly between grid points (each lands on its own pixel), over ground points
+    # only (a normalised interpolation): no halo of the unlit value at a vehicle's outline.
+    mx = np.broadcast_to(((np.arange(W) - SKY_STEP // 2) / SKY_STEP).astype(np.float32), (H, W))
+    my = np.broadcast_to(((np.arange(H) - SKY_STEP // 2) / SKY_STEP).astype(np.float32)[:, None], (H, W))
+    weight = need.astype(np.float32)
+    sw, ww = (cv2.remap(a, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+              for a in (small * weight, weight))
+    out = np.where(ww > 1e-6, sw / np.maximum(ww, 1e-6), 0.0).astype(np.float32)
+    return out * ground * (depth > 0)

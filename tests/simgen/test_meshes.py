@@ -130,3 +130,29 @@ def test_user_mesh_is_scaled_to_its_target_size(tmp_path):
     own = build_actor_parts(user_recipe(str(path), "Car", None, "z", (0.2, 0.3, 0.4), 0.5))[0]
     np.testing.assert_allclose(own.mesh.bounds[1] - own.mesh.bounds[0], [4.0, 2.0, 1.0], atol=1e-12)
     assert part.material.reflectivity == 0.5
+
+
+def test_the_rear_window_has_body_coloured_pillars_on_its_plane():
+    """Seen from behind, a car's glass is framed by two paint slabs: each lies on the rear glass
+    face (within its 5 mm inside and 12 mm proud) and covers REAR_PILLAR of the face's width
+    from its side edge."""
+    from simgen.meshes import REAR_PILLAR
+
+    rng = np.random.default_rng(3)
+    for _ in range(10):
+        recipe = sample_recipe("Car", rng)
+        parts = build_actor_parts(recipe)
+        glass = next(p.mesh for p in parts if p.material.name == "glass")
+        back = glass.face_normals[:, 0] < -0.3  # the rear glass face: it looks backwards
+        n = glass.face_normals[back][0]
+        plane = glass.vertices[glass.faces[back][0][0]] @ n
+        foot = glass.vertices[glass.faces[back]].reshape(-1, 3)
+        foot = foot[np.isclose(foot[:, 2], foot[:, 2].min())]
+        width = np.ptp(foot[:, 1])
+        slabs = [p.mesh for p in parts if p.material.name == "paint"
+                 and np.all(np.abs(p.mesh.vertices @ n - plane) <= 0.012 + 1e-9)]
+        assert len(slabs) == 2
+        for s in slabs:
+            low = s.vertices[np.isclose(s.vertices[:, 2], s.vertices[:, 2].min(), atol=0.02)]
+            assert np.ptp(low[:, 1]) == pytest.approx(REAR_PILLAR * width, rel=0.02)
+            assert np.abs(low[:, 1]).max() == pytest.approx(width / 2, abs=0.01)

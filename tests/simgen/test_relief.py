@@ -211,3 +211,37 @@ def test_a_tilted_car_is_labelled_by_its_upright_box_on_the_road(tilt):
     assert z == pytest.approx(float(road.height(x, y)), abs=1e-9)
     size = (rig.width, rig.height)
     np.testing.assert_allclose(row.bbox, project_boxes(row.box7[None], rig.calib, size)[0], atol=1e-6)
+
+
+def test_a_draped_wall_wears_one_continuous_facade():
+    """Every vertex of a draped building gets one texture coordinate, whichever of its triangles
+    is drawn: windows run on across the split wall and storeys stay level above its lowest point
+    (per-triangle extents cut the windows apart along the diagonals)."""
+    import trimesh
+
+    from simgen.render import _facade_uv
+    from simgen.textures import BAY_M
+
+    road = RoadLayout(0.0, 2, 3.5, 0, 3.0, 0.15, False, -20.0, 160.0,
+                      profile=VerticalProfile(-0.05, 0.0, 10.0, 0.0))
+    house = trimesh.creation.box(extents=(29.0, 12.0, 10.0))
+    house.apply_translation([40.0, 14.0, 5.0])
+    out = drape_mesh(house, road)
+    walls = np.abs(out.face_normals[:, 2]) < 0.7
+    faces = np.asarray(out.faces)[walls]
+    tris = np.asarray(out.vertices)[faces]
+    tile = (6.0, 3.2)
+    uv = _facade_uv(tris, out.face_normals[walls], tile, 0.5)
+    assert len(faces) > 8  # the long walls were split
+    for vertex in np.unique(faces):
+        at = faces == vertex
+        for n in np.unique(np.round(out.face_normals[walls][at.any(axis=1)], 6), axis=0):
+            same = at & np.all(np.isclose(out.face_normals[walls], n, atol=1e-6), axis=1)[:, None]
+            assert np.ptp(uv[same], axis=0).max() < 1e-9  # one (u, v) per vertex and wall
+    # The 29 m wall carries round(29 / BAY_M) whole bays: u spans that many bay widths.
+    front = np.isclose(out.face_normals[walls][:, 1], -1.0)
+    span = np.ptp(uv[front][..., 0]) * tile[0]
+    assert span == pytest.approx(round(29.0 / BAY_M) * BAY_M)
+    lowest = tris[front][..., 2].min()
+    assert uv[front][..., 1].min() == pytest.approx(0.0, abs=1e-12)
+    assert np.allclose(uv[front][..., 1], (tris[front][..., 2] - lowest) / tile[1])

@@ -8,7 +8,7 @@ import trimesh
 
 from simgen.materials import ASPHALT, FOLIAGE
 from simgen.meshes import box
-from simgen.shadows import SOFTEN, STEP, Occluders, sun_shadow
+from simgen.shadows import SKY_RAYS, SKY_STEP, SOFTEN, STEP, Occluders, Reach, sky_directions, sky_occlusion, sun_shadow
 from simgen.world import Material, Part
 
 F, N = 100.0, 101  # a 101 x 101 camera 20 m above the ground, looking straight down
@@ -55,3 +55,70 @@ def test_no_shadow_with_the_sun_below_the_horizon_or_only_where_asked():
     assert not sun_shadow(world, depth_img, K, CAM2_FROM_WORLD, np.array([1.0, 0.0, -0.1])).any()
     sunlit = np.zeros((N, N), bool)  # no pixel faces the sun: no ray is cast
     assert not sun_shadow(world, depth_img, K, CAM2_FROM_WORLD, np.array([0.0, 0.0, 1.0]), sunlit).any()
+
+
+def _corner_factor(a: float, b: float, c: float) -> float:
+    """Cosine-weighted view factor from a horizontal surface element to a parallel a x b
+    rectangle c above it, one corner over the element (Howell's catalogue of view factors: a plane
+    element to a parallel rectangle, its normal through a corner)."""
+    x, y = a / c, b / c
+    return (x / np.hypot(1, x) * np.arctan(y / np.hypot(1, x))
+            + y / np.hypot(1, y) * np.arctan(x / np.hypot(1, y))) / (2 * np.pi)
+
+
+def _plate_factor(px: float, py: float, half: float, c: float) -> float:
+    """The same to a 2 half x 2 half plate centred over the origin, from the point (px, py): the
+    signed sum of the four rectangles between the point and the plate's corners."""
+    def signed(a: float, b: float) -> float:
+        return np.sign(a) * np.sign(b) * _corner_factor(abs(a), abs(b), c)
+
+    x1, x0, y1, y0 = half - px, -half - px, half - py, -half - py
+    return signed(x1, y1) - signed(x0, y1) - signed(x1, y0) + signed(x0, y0)
+
+
+def test_sky_occlusion_of_a_plate_is_its_view_factor():
+    """Ground points under and beside a thin plate 1 m up lose the share of the sky the plate
+    covers (the exact view factor), up to the 32-ray quadrature; none beyond the reach, none off
+    the ground mask."""
+    half, c = 2.0, 1.0
+    plate = Part(box(-half, half, -half, half, c, c + 0.01), Material("slab", (0.5, 0.5, 0.5), 0.3))
+    occ = Occluders.of_parts([plate], plate.mesh.vertices[plate.mesh.faces])
+    # The reach's box stands on the ground, as an actor's does.
+    reach = Reach(np.eye(4)[None], np.array([[-half, -half, 0.0]]), np.array([[half, half, c + 0.01]]))
+    depth_img = np.full((N, N), 20.0, np.float32)
+    ground = np.ones((N, N), bool)
+    ground[:, :10] = False
+    got = sky_occlusion(occ, reach, depth_img, ground, K, CAM2_FROM_WORLD)
+    # Ground pixel (u, v) lies at x = (u - 50) / 5, y = (50 - v) / 5; the ray grid's points
+    # within the reach (2 m 2 cm beyond the plate's edges) against the view factor. The 32-ray
+    # quadrature of a step-edged plate errs by 0.02 on average and under 0.09 anywhere (the
+    # same rays against the formula over a 0.1 m lattice of points).
+    errors = []
+    for u in range(SKY_STEP // 2 + SKY_STEP, 90, SKY_STEP):
+        for v in range(SKY_STEP // 2 + SKY_STEP, 90, SKY_STEP):
+            x, y = (u - 50) / 5.0, (50 - v) / 5.0
+            errors.append(got[v, u] - _plate_factor(x, y, half, c - 0.05))
+    errors = np.abs(errors)
+    assert errors.mean() < 0.025 and errors.max() < 0.09
+    assert got[51, 51] > 0.75  # under the middle of the plate: 0.83 of the sky hidden
+    assert not got[:, :10].any()  # not ground
+    # Beyond the reach (|x| or |y| > 4.02 m) and one grid step of interpolation: nothing.
+    assert not got[:, 77:].any() and not got[:24].any() and not got[77:].any()
+    assert sky_directions().shape == (SKY_RAYS, 3)
+    assert np.allclose(np.linalg.norm(sky_directions(), axis=1), 1.0)
+
+
+def test_darken_by_hand():
+    """Linear light: a quarter of it from the sky (alpha encodes 0.25 ** (1 / 2.2)), untinted.
+    Full shadow leaves that quarter, 200 * 0.25 ** (1 / 2.2) = 106.5; shadow and full sky
+    occlusion leave nothing; half the sky hidden in the sun leaves 1 - 0.125, 200 * 0.875 **
+    (1 / 2.2) = 188.2; nothing darkened leaves the colour."""
+    from simgen.render import darken
+
+    alpha = np.full(4, int(round(255 * 0.25 ** (1 / 2.2))), np.int64)  # 136: 0.2506 linear
+    rest = (alpha[0] / 255.0) ** 2.2
+    got = darken(np.full((4, 3), 200, np.uint8), alpha, np.array([1.0, 1.0, 0.0, 0.0], np.float32),
+                 np.array([0.0, 1.0, 0.5, 0.0], np.float32), np.ones(3, np.float32))
+    expected = np.round(200 * np.array([rest, 0.0, 1 - 0.5 * rest, 1.0]) ** (1 / 2.2))
+    assert np.array_equal(got, np.repeat(expected[:, None], 3, axis=1))
+    assert list(expected) == [107.0, 0.0, 188.0, 200.0]
