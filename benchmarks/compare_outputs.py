@@ -11,8 +11,9 @@ A change that only moves code must print "identical"; one meant to change output
 
 Both runs write to the same path (OUT/work) one after the other. Two things are not compared: the
 `.done` stage markers (resume bookkeeping that records input paths, which move when a file does),
-and the digest in the sweep's cache folder names (`points-<digest>`, `detections-<digest>`, a
-digest of the detector and lifter code, which changes with any edit there).
+and the digests in the sweep's cache folder names (`base-`, `scans-`, `points-`, `detections-`:
+digests of the generator's and of the detector and lifter code, which change with any edit there;
+also where JSON files name those folders).
 """
 
 from __future__ import annotations
@@ -47,7 +48,7 @@ PIPELINE = [
     ("sweep", ["sweep", "scenes/sweeps/two_point.yaml", "--data", "{W}/sweep",
                "--out", "{W}/sweep_report", "--workers", "2"]),
 ]
-DIGEST = re.compile(r"(points|detections)-[0-9a-f]{10}")
+DIGEST = re.compile(r"(base|scans|points|detections)-[0-9a-f]{10}(?:-[0-9a-f]{10})?")
 
 
 def run_pipeline(checkout: Path, work: Path) -> dict[str, str]:
@@ -70,8 +71,11 @@ def run_pipeline(checkout: Path, work: Path) -> dict[str, str]:
         out[f"stdout/{name}"] = hashlib.sha256(res.stdout.replace(str(work), "W").encode()).hexdigest()
     for p in sorted(work.rglob("*")):
         if p.is_file() and p.name != ".done":
-            rel = DIGEST.sub(r"\1-MODELS", str(p.relative_to(work)))
-            out[rel] = hashlib.sha256(p.read_bytes()).hexdigest()
+            rel = DIGEST.sub(r"\1-CODE", str(p.relative_to(work)))
+            data = p.read_bytes()
+            if p.suffix == ".json":  # provenance (a scan's `source`) names those folders too
+                data = DIGEST.sub(r"\1-CODE", data.decode()).encode()
+            out[rel] = hashlib.sha256(data).hexdigest()
     return out
 
 
