@@ -285,12 +285,16 @@ def _thermal(part: Part, moving: bool) -> tuple[float, float, float]:
 
 
 def _actor_meshes(bodies: list[tuple[list[Part], np.ndarray, bool]],
-                  shader: _Shader) -> tuple[list[pyrender.Mesh], Occluders]:
+                  shader: _Shader) -> tuple[list[pyrender.Mesh], Occluders, Reach]:
     """One flat-shaded primitive per actor (parts in the actor frame), all actors shaded in one
-    vectorised pass in the world frame; and their triangles (world frame) as shadow casters."""
+    vectorised pass in the world frame; their triangles (world frame) as shadow casters; and
+    each body's box, where it can hide the sky."""
     if not bodies:
-        return [], Occluders(np.zeros((0, 3, 3), np.float32), np.zeros(0, np.float32))
+        return ([], Occluders(np.zeros((0, 3, 3), np.float32), np.zeros(0, np.float32)),
+                Reach(np.zeros((0, 4, 4)), np.zeros((0, 3)), np.zeros((0, 3))))
     shared = [_shared(parts) for parts, _, _ in bodies]
+    reach = Reach(np.array([np.linalg.inv(pose) for _, pose, _ in bodies]),
+                  np.array([v.min(axis=0) for v, _ in shared]), np.array([v.max(axis=0) for v, _ in shared]))
     geo = _split_faceted(shared)
     world_tris = np.concatenate([t @ pose[:3, :3].T + pose[:3, 3] for (t, _), (_, pose, _) in zip(geo, bodies)])
     world_n = np.concatenate([n @ pose[:3, :3].T for (_, n), (_, pose, _) in zip(geo, bodies)])
@@ -304,7 +308,7 @@ def _actor_meshes(bodies: list[tuple[list[Part], np.ndarray, bool]],
     faces = _joint_faces([f for _, f in shared], [len(v) for v, _ in shared])
     return ([pyrender.Mesh([_primitive(t, shader.gl_normals(n), c, _PLAIN)])
              for (t, n), c in zip(geo, np.split(rgba, ends))],
-            Occluders.of_parts(parts, world_tris, (world_v, faces)))
+            Occluders.of_parts(parts, world_tris, (world_v, faces)), reach)
 
 
 def _lamp_mesh(part: Part, material) -> pyrender.Mesh:
@@ -463,7 +467,7 @@ def build_scene(world: World) -> tuple[pyrender.Scene, dict, int, Casters]:
                        actor.pose, moving))
         lamps += [(p, actor.pose, _seg_code(actor.id)) for p in actor.parts
                   if lit and p.material.name in EMISSIVE]
-    meshes, actor_casters = _actor_meshes(bodies, shader)
+    meshes, actor_casters, reach = _actor_meshes(bodies, shader)
     for actor, mesh in zip(world.actors, meshes):
         seg[scene.add(mesh, pose=actor.pose)] = _seg_code(actor.id)
     for part, pose, code in lamps:
@@ -489,10 +493,6 @@ def build_scene(world: World) -> tuple[pyrender.Scene, dict, int, Casters]:
                                          innerConeAngle=0.15, outerConeAngle=0.45), pose=p)
     flags = {"pbr": RenderFlags.NONE, "thermal": RenderFlags.FLAT,
              "lit": RenderFlags.FLAT | RenderFlags.RGBA}[shader.mode]
-    boxes = [np.concatenate([p.mesh.vertices for p in a.parts]) for a in world.actors]
-    reach = Reach(np.array([np.linalg.inv(a.pose) for a in world.actors]).reshape(-1, 4, 4),
-                  np.array([v.min(axis=0) for v in boxes]).reshape(-1, 3),
-                  np.array([v.max(axis=0) for v in boxes]).reshape(-1, 3))
     return scene, seg, flags, Casters(casters, actor_casters, reach)
 
 
