@@ -40,6 +40,8 @@ brightest channel, from about 0.05 for carbon black to about 0.85 for a TiO2 whi
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 from .world import Material
 
 NIR_BLACK = 0.05  # carbon-black paint or dye at 905 nm (Levinson et al. 2005: < 0.1 across the NIR)
@@ -134,8 +136,12 @@ FRAME = paint_material("bike_frame", (0.15, 0.15, 0.17))
 TRIM = paint_material("trim", (0.03, 0.03, 0.03))
 # Wheel rims: cast aluminium alloy, clear-coated or silver-painted (aluminium flakes in a clear
 # binder), or steel rims painted silver. Polished aluminium reflects about 0.86 at 905 nm, but
-# mostly specularly, away from the sensor; a light grey, 0.55 by the rule above.
-RIM = paint_material("rim", (0.60, 0.61, 0.63))
+# mostly specularly, away from the sensor; a light grey, 0.55 by the rule above. The camera sees
+# the rim's face whole: on an alloy, about half of it spokes and half openings onto the dark brake
+# and hub (five- and multi-spoke wheels, read off makers' wheel images; no survey), so its mean
+# colour is about half the silver's. The LiDAR keeps the silver's reading (a beam that meets a
+# spoke reads it; one through an opening ends on the brake disc, steel, no darker at 905 nm).
+RIM = replace(paint_material("rim", (0.60, 0.61, 0.63)), color=(0.31, 0.315, 0.325))
 
 
 def signal_lens(color) -> Material:

@@ -190,12 +190,12 @@ def _split_faceted(meshes: list[tuple[np.ndarray, np.ndarray]]) -> list[tuple[np
 
 def _primitive(tris: np.ndarray, normals: np.ndarray | None, rgba: np.ndarray, material,
                uv: np.ndarray | None = None) -> pyrender.Primitive:
-    """Flat faces: vertices unshared per face, a colour per face. Normals only where pyrender
+    """Faces with their vertices unshared, a colour per face (F, 4) or per corner (F, 3, 4). Normals only where pyrender
     lights per pixel (None under its flat shader, which never reads them: less to upload)."""
     return pyrender.Primitive(
         positions=tris.reshape(-1, 3).astype(np.float32),
         normals=None if normals is None else np.repeat(normals, 3, axis=0).astype(np.float32),
-        color_0=np.repeat(rgba, 3, axis=0).astype(np.float32),
+        color_0=(np.repeat(rgba, 3, axis=0) if rgba.ndim == 2 else rgba.reshape(-1, 4)).astype(np.float32),
         texcoord_0=None if uv is None else uv.reshape(-1, 2).astype(np.float32), material=material)
 
 
@@ -234,9 +234,11 @@ class _Shader:
         self.headroom = HEADROOM if self.mode == "lit" else 1.0
 
     def colors(self, parts: list[Part], tris: np.ndarray, normals: np.ndarray, moving: bool,
-               albedo_gain: np.ndarray | None = None) -> np.ndarray:
+               albedo_gain: np.ndarray | None = None,
+               corner_normals: np.ndarray | None = None) -> np.ndarray:
         """(F, 4) RGBA of all faces of the parts (world-frame triangles and normals), in
-        _triangles order."""
+        _triangles order; with `corner_normals` (F, 3, 3) the lit look shades each corner of
+        each face with its own normal, (F, 3, 4), and the rasteriser blends them across the face."""
         counts = [len(p.mesh.faces) for p in parts]
         if self.mode == "thermal":
             rgb = np.repeat(np.array([_thermal(p, moving) for p in parts]), counts, axis=0)
@@ -246,12 +248,22 @@ class _Shader:
             albedo = albedo * np.repeat(albedo_gain, counts, axis=0)
         if self.mode == "pbr":
             return np.c_[albedo, np.ones(len(albedo))]
+        glossy = np.repeat([p.material.name in GLOSSY for p in parts], counts)
+        if corner_normals is None:
+            return self._lit(albedo, glossy, tris.mean(axis=1), normals)
+        rgba = self._lit(np.repeat(albedo, 3, axis=0), np.repeat(glossy, 3), tris.reshape(-1, 3),
+                         corner_normals.reshape(-1, 3))
+        return rgba.reshape(-1, 3, 4)
+
+    def _lit(self, albedo: np.ndarray, glossy: np.ndarray, points: np.ndarray,
+             normals: np.ndarray) -> np.ndarray:
+        """(N, 4) gamma-encoded RGB and the share of light that is not direct sun, of N surface
+        points of the given albedo and normal."""
         sun = np.clip(normals @ self.sun, 0.0, 1.0)[:, None] * self.sun_rgb * _DIFFUSE
         sky = self.ambient * (0.7 + 0.3 * normals[:, 2:3])
         lin = albedo * (sun + sky)
-        glossy = np.repeat([p.material.name in GLOSSY for p in parts], counts)
         if glossy.any():
-            lin[glossy] += self._mirror(tris[glossy].mean(axis=1), normals[glossy])
+            lin[glossy] += self._mirror(points[glossy], normals[glossy])
         rest = (sky / np.maximum(sun + sky, 1e-9)).mean(axis=1)
         rgb = np.clip(lin / self.headroom, 0.0, 1.0) ** (1 / 2.2)
         return np.c_[rgb, np.clip(rest, 0.0, 1.0) ** (1 / 2.2)]
@@ -298,17 +310,47 @@ def _actor_meshes(bodies: list[tuple[list[Part], np.ndarray, bool]],
     geo = _split_faceted(shared)
     world_tris = np.concatenate([t @ pose[:3, :3].T + pose[:3, 3] for (t, _), (_, pose, _) in zip(geo, bodies)])
     world_n = np.concatenate([n @ pose[:3, :3].T for (_, n), (_, pose, _) in zip(geo, bodies)])
+    ends = np.cumsum([len(t) for t, _ in geo])[:-1]
     parts = [p for b, _, _ in bodies for p in b]
     if shader.mode == "thermal":  # warm when moving: per actor
         rgba = np.concatenate([shader.colors(b, None, None, moving) for b, _, moving in bodies])
+    elif shader.mode == "lit":
+        bent = _bent_normals(parts, np.concatenate([t for t, _ in geo]), np.concatenate([n for _, n in geo]))
+        bent = np.concatenate([b @ pose[:3, :3].T for b, (_, pose, _) in zip(np.split(bent, ends), bodies)])
+        rgba = shader.colors(parts, world_tris, world_n, False, corner_normals=bent)
     else:
         rgba = shader.colors(parts, world_tris, world_n, False)
-    ends = np.cumsum([len(t) for t, _ in geo])[:-1]
     world_v = np.concatenate([v @ pose[:3, :3].T + pose[:3, 3] for (v, _), (_, pose, _) in zip(shared, bodies)])
     faces = _joint_faces([f for _, f in shared], [len(v) for v, _ in shared])
     return ([pyrender.Mesh([_primitive(t, shader.gl_normals(n), c, _PLAIN)])
              for (t, n), c in zip(geo, np.split(rgba, ends))],
             Occluders.of_parts(parts, world_tris, (world_v, faces)), reach)
+
+
+# Body panels are curved where the meshes are flat: a door's skin turns through about 30 deg
+# between shoulder and sill (rounded in above the belt line, the sill tucked in below); roof,
+# bonnet and boot are crowned; bumpers, lamps and screens wrap round (read off makers' front and
+# side views; no survey). The meshes keep their flat faces (what the LiDAR and the labels see);
+# the lit colour pass shades each corner of a face with the face normal bent towards the corner's
+# direction from its part's centre, in units of the part's half extents, so the light and the
+# mirrored sky change across a face as across a curved panel: BEND turns the normal at the
+# middle of an edge by PANEL_TURN / 2 (tan = BEND / (1 + BEND)).
+PANEL_TURN = np.radians(30.0)
+BEND = np.tan(PANEL_TURN / 2) / (1 - np.tan(PANEL_TURN / 2))
+
+
+def _bent_normals(parts: list[Part], tris: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """(F, 3, 3) shading normals of the corners of the parts' faces (tris and normals in one
+    frame, _triangles order): each face normal bent by BEND towards the corner's direction from
+    its part's box centre, measured in the box's half extents."""
+    verts = [np.asarray(p.mesh.vertices).view(np.ndarray) for p in parts]
+    starts = np.cumsum([0, *[len(v) for v in verts[:-1]]])
+    allv = np.concatenate(verts)
+    lo, hi = np.minimum.reduceat(allv, starts), np.maximum.reduceat(allv, starts)
+    owner = np.repeat(np.arange(len(parts)), [len(p.mesh.faces) for p in parts])
+    centre, half = ((lo + hi) / 2)[owner], np.maximum((hi - lo) / 2, 1e-6)[owner]
+    bent = normals[:, None, :] + BEND * (tris - centre[:, None, :]) / half[:, None, :]
+    return bent / np.linalg.norm(bent, axis=2, keepdims=True)
 
 
 def _lamp_mesh(part: Part, material) -> pyrender.Mesh:
