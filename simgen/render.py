@@ -315,7 +315,8 @@ def _actor_meshes(bodies: list[tuple[list[Part], np.ndarray, bool]],
     if shader.mode == "thermal":  # warm when moving: per actor
         rgba = np.concatenate([shader.colors(b, None, None, moving) for b, _, moving in bodies])
     elif shader.mode == "lit":
-        bent = _bent_normals(parts, np.concatenate([t for t, _ in geo]), np.concatenate([n for _, n in geo]))
+        bent = _bent_normals([len(p.mesh.faces) for p in parts], np.concatenate([t for t, _ in geo]),
+                             np.concatenate([n for _, n in geo]))
         bent = np.concatenate([b @ pose[:3, :3].T for b, (_, pose, _) in zip(np.split(bent, ends), bodies)])
         rgba = shader.colors(parts, world_tris, world_n, False, corner_normals=bent)
     else:
@@ -339,15 +340,14 @@ PANEL_TURN = np.radians(30.0)
 BEND = np.tan(PANEL_TURN / 2) / (1 - np.tan(PANEL_TURN / 2))
 
 
-def _bent_normals(parts: list[Part], tris: np.ndarray, normals: np.ndarray) -> np.ndarray:
-    """(F, 3, 3) shading normals of the corners of the parts' faces (tris and normals in one
-    frame, _triangles order): each face normal bent by BEND towards the corner's direction from
-    its part's box centre, measured in the box's half extents."""
-    verts = [np.asarray(p.mesh.vertices).view(np.ndarray) for p in parts]
-    starts = np.cumsum([0, *[len(v) for v in verts[:-1]]])
-    allv = np.concatenate(verts)
-    lo, hi = np.minimum.reduceat(allv, starts), np.maximum.reduceat(allv, starts)
-    owner = np.repeat(np.arange(len(parts)), [len(p.mesh.faces) for p in parts])
+def _bent_normals(face_counts: list[int], tris: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """(F, 3, 3) shading normals of the corners of consecutive parts' faces (`face_counts` faces
+    each; tris and normals in one frame): each face normal bent by BEND towards the corner's
+    direction from its part's box centre, measured in the box's half extents."""
+    starts = np.cumsum([0, *face_counts[:-1]])
+    lo = np.minimum.reduceat(tris.min(axis=1), starts)
+    hi = np.maximum.reduceat(tris.max(axis=1), starts)
+    owner = np.repeat(np.arange(len(face_counts)), face_counts)
     centre, half = ((lo + hi) / 2)[owner], np.maximum((hi - lo) / 2, 1e-6)[owner]
     bent = normals[:, None, :] + BEND * (tris - centre[:, None, :]) / half[:, None, :]
     return bent / np.linalg.norm(bent, axis=2, keepdims=True)
