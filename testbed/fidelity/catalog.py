@@ -1,7 +1,7 @@
 """The headline statistics: one number per dataset each, under a stable key shared by the report,
 fidelity.json and tolerances.yaml. Per-frame values are summarised by their median over frames,
-per-object ones (distance, 2D height, projection gap, points on a Car) by their median over
-objects."""
+per-object ones (distance, 2D height, projection gap, points on a Car, the look of a near Car) by
+their median over objects."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from typing import Callable
 
 import numpy as np
 
-from .images import CANNY
+from .images import CANNY, NEAR_CAR_PX
 from .lidar import GROUND_M, NEAR_M
 from .stats import DatasetStats
 
@@ -107,6 +107,13 @@ STATS: tuple[Stat, ...] = (
     Stat("labels.box_height_px", "2D box height", "px", med("labels.box_height_px")),
     Stat("labels.proj_gap_px", "2D box vs projected 3D box, max side gap", "px",
          med("labels.proj_gap_px")),
+    Stat("labels.car_grey_mean", f"grey mean inside a near, whole Car's 2D box (>= {NEAR_CAR_PX} px)", "",
+         med("labels.car_grey_mean")),
+    Stat("labels.car_grey_sd", "grey standard deviation inside it (RMS contrast)", "",
+         med("labels.car_grey_sd")),
+    Stat("labels.car_abs_dx", "mean |dI/dx| inside it", "grey levels", med("labels.car_abs_dx")),
+    Stat("labels.car_bottom_darkening", "its grey mean less that of its lowest eighth", "grey levels",
+         med("labels.car_bottom_darkening")),
     Stat("labels.proj_within_1px_share", "share of objects with that gap within 1 px", "",
          lambda d: _share(d.get("labels.proj_gap_px"), lambda v: v <= 1.0)),
 )

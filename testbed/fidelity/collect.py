@@ -14,7 +14,7 @@ from kitti.dataset import KittiDataset
 from kitti.errors import KittiFormatError
 from kitti.jobs import Backend, InProcess
 
-from .images import image_stats, read_image
+from .images import car_look_stats, image_stats, read_image
 from .labels import label_stats
 from .lidar import lidar_stats
 from .stats import Acc, DatasetStats, merge
@@ -56,6 +56,7 @@ def run_chunk(job: ChunkJob) -> Acc:
                 lidar_stats(acc, scan, calib, labels)
             if labels is not None:
                 label_stats(acc, labels, calib, (img.shape[1], img.shape[0]))
+                car_look_stats(acc, img, labels)
         return acc
     finally:
         cv2.setNumThreads(threads)

@@ -1,6 +1,8 @@
 """Image statistics of one image_2 PNG: tone, colour, texture and how much the encoder had to
 store. Generated images tend to be too clean (flat shading, no sensor noise), which shows as many
-flat pixels, weak gradients and small PNG files."""
+flat pixels, weak gradients and small PNG files. With labels, the same inside the 2D boxes of
+near, whole Cars: what a detector sees of a car, which whole-image figures can match while the
+cars still look nothing like real ones."""
 
 from __future__ import annotations
 
@@ -10,11 +12,15 @@ import cv2
 import numpy as np
 
 from kitti.errors import KittiFormatError
+from kitti.labels import Object3D
 
 from .stats import Acc
 
 CANNY = (100, 200)  # fixed hysteresis thresholds, grey levels
 FLAT = 1            # |dI/dx| below this (grey levels) is a flat pixel
+# A Car whose look is measured: its 2D box at least this tall (KITTI's "easy" height, about 28 m
+# and nearer for a 1.5 m car), untruncated and fully visible, so the box holds the car alone.
+NEAR_CAR_PX = 40
 
 
 def read_image(path: Path) -> tuple[np.ndarray, int]:
@@ -42,3 +48,23 @@ def image_stats(acc: Acc, img: np.ndarray, nbytes: int) -> None:
     acc.hist("images.grey", grey)
     acc.hist("images.saturation", sat)
     acc.hist("images.gradient", mag)
+
+
+def car_look_stats(acc: Acc, img: np.ndarray, labels: list[Object3D]) -> None:
+    """Per near, whole Car (NEAR_CAR_PX): grey mean, grey standard deviation (RMS contrast) and
+    mean |dI/dx| inside its 2D box (pixel indices rounded, clipped to the image), and how much
+    darker the box's lowest eighth (tyres, the shade under the body) is than the whole box."""
+    grey = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+    h, w = grey.shape
+    for o in labels:
+        if o.type != "Car" or o.truncated > 0 or o.occluded != 0 or o.height_px < NEAR_CAR_PX:
+            continue
+        x1, y1 = (int(np.clip(round(v), 0, n - 1)) for v, n in zip(o.bbox[:2], (w, h)))
+        x2, y2 = (int(np.clip(round(v), 0, n - 1)) for v, n in zip(o.bbox[2:], (w, h)))
+        patch = grey[y1:y2 + 1, x1:x2 + 1].astype(np.float64)
+        if patch.shape[0] < 8 or patch.shape[1] < 2:
+            continue
+        acc.put("labels.car_grey_mean", patch.mean())
+        acc.put("labels.car_grey_sd", patch.std())
+        acc.put("labels.car_abs_dx", np.abs(np.diff(patch, axis=1)).mean())
+        acc.put("labels.car_bottom_darkening", patch.mean() - patch[-(len(patch) // 8):].mean())

@@ -13,7 +13,7 @@ import numpy as np
 from kitti.io import atomic_write_text
 
 from .compare import Comparison, Row
-from .images import CANNY
+from .images import CANNY, NEAR_CAR_PX
 from .labels import CLASSES, KITTI_TRAINING_FRAMES, KITTI_TRAINING_LABELS
 from .lidar import GROUND_M, NEAR_M
 from .stats import DatasetStats
@@ -25,7 +25,8 @@ NOTES = f"""\
 ## How the numbers are measured
 
 - Per-frame values are summarised by their median over frames; per-object values (distance, 2D
-  height, projection gap, points on a Car) by their median over objects. Histograms pool all frames.
+  height, projection gap, points on a Car, the look of a near Car) by their median over objects.
+  Histograms pool all frames.
 - Range is sqrt(x^2 + y^2 + z^2) of the .bin points. Rings come from `kitti.rings.recover_rings(points, 64)`
   for both datasets; a ring's elevation is the median of atan2(z, sqrt(x^2 + y^2)) of its points.
 - Ground returns: within {GROUND_M} m of the road plane fitted by RANSAC to the low returns
@@ -38,6 +39,8 @@ NOTES = f"""\
   {CANNY[0]} and {CANNY[1]}.
 - Objects are every label but DontCare. Projection gap: the label's 3D box corners projected with
   P2 and clipped to the image, max |side difference| against its 2D box.
+- A near, whole Car: a Car label at least {NEAR_CAR_PX} px tall, truncation 0, occlusion 0; its
+  look is read from the grey image inside its 2D box (sides rounded to pixel indices).
 - Relative difference = (sim - real) / |real|; a statistic passes when its magnitude is at most the
   tolerance.
 """

@@ -7,6 +7,7 @@ import json
 import shutil
 from pathlib import Path
 
+import cv2
 import imageio.v3 as iio
 import numpy as np
 import pytest
@@ -20,6 +21,8 @@ from simgen.spec import load_spec
 from testbed.cmd_fidelity import fidelity
 from testbed.fidelity import ToleranceError, Tolerances, compare, compute_stats, load_tolerances, write_report
 from testbed.fidelity.catalog import STAT_KEYS
+from testbed.fidelity.images import car_look_stats
+from testbed.fidelity.stats import Acc
 from testbed.fidelity.compare import verdict
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -216,3 +219,20 @@ def test_points_on_cars_by_distance_and_on_the_fully_visible_ones():
     assert car_points(20, 40)(d) == np.median([120.0, 30.0, 100.0, 40.0])  # 70
     assert car_points(20, 40, visible=True)(d) == np.median([120.0, 100.0])  # 110
     assert car_points(40, 80)(d) == 5.5 and car_points(40, 80, visible=True)(d) == 9.0
+
+
+def test_the_look_of_a_near_whole_car_by_hand(real_root):
+    """Frame 001206: one Car is near (175 px tall), untruncated and fully visible; the others are
+    truncated, occluded, Vans or a Truck. Its box's pixels, by hand: columns 551-736, rows 186-361."""
+    t = real_root / "training"
+    acc = Acc()
+    car_look_stats(acc, cv2.imread(str(t / "image_2/001206.png")), read_label(t / "label_2/001206.txt"))
+    rgb = iio.imread(t / "image_2/001206.png")[..., :3].astype(np.float64)
+    patch = np.round(rgb @ [0.299, 0.587, 0.114])[186:362, 551:737]  # BT.601, as cv2's BGR2GRAY
+    hand = {"labels.car_grey_mean": patch.mean(), "labels.car_grey_sd": patch.std(),
+            "labels.car_abs_dx": np.abs(np.diff(patch, axis=1)).mean(),
+            "labels.car_bottom_darkening": patch.mean() - patch[-22:].mean()}  # 176 rows / 8
+    for key, value in hand.items():
+        (got,) = np.concatenate(acc.values[key])
+        assert got == pytest.approx(value, rel=5e-3, abs=0.05), key
+    assert hand["labels.car_grey_mean"] < 100 and hand["labels.car_bottom_darkening"] > 10  # a dark car, darker below
