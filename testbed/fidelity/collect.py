@@ -51,12 +51,12 @@ def run_chunk(job: ChunkJob) -> Acc:
                 acc.skipped.append((fid, str(e)))
                 continue
             acc.frames.append(fid)
-            image_stats(acc, img, nbytes)
+            grey = image_stats(acc, img, nbytes)
             if scan is not None:
                 lidar_stats(acc, scan, calib, labels)
             if labels is not None:
                 label_stats(acc, labels, calib, (img.shape[1], img.shape[0]))
-                car_look_stats(acc, img, labels)
+                car_look_stats(acc, grey, labels)
         return acc
     finally:
         cv2.setNumThreads(threads)

@@ -32,7 +32,8 @@ def read_image(path: Path) -> tuple[np.ndarray, int]:
     return img, len(data)
 
 
-def image_stats(acc: Acc, img: np.ndarray, nbytes: int) -> None:
+def image_stats(acc: Acc, img: np.ndarray, nbytes: int) -> np.ndarray:
+    """The whole image's statistics; returns its grey image (cv2's BGR2GRAY)."""
     grey = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
     sat = cv2.cvtColor(img, cv2.COLOR_BGR2HSV)[..., 1]
     g = grey.astype(np.int16)
@@ -48,13 +49,14 @@ def image_stats(acc: Acc, img: np.ndarray, nbytes: int) -> None:
     acc.hist("images.grey", grey)
     acc.hist("images.saturation", sat)
     acc.hist("images.gradient", mag)
+    return grey
 
 
-def car_look_stats(acc: Acc, img: np.ndarray, labels: list[Object3D]) -> None:
-    """Per near, whole Car (NEAR_CAR_PX): grey mean, grey standard deviation (RMS contrast) and
-    mean |dI/dx| inside its 2D box (pixel indices rounded, clipped to the image), and how much
-    darker the box's lowest eighth (tyres, the shade under the body) is than the whole box."""
-    grey = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+def car_look_stats(acc: Acc, grey: np.ndarray, labels: list[Object3D]) -> None:
+    """Per near, whole Car (NEAR_CAR_PX) of a grey image: grey mean, grey standard deviation (RMS
+    contrast) and mean |dI/dx| inside its 2D box (pixel indices rounded, clipped to the image),
+    and how much darker the box's lowest eighth (tyres, the shade under the body) is than the
+    whole box."""
     h, w = grey.shape
     for o in labels:
         if o.type != "Car" or o.truncated > 0 or o.occluded != 0 or o.height_px < NEAR_CAR_PX:

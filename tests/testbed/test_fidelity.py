@@ -226,7 +226,8 @@ def test_the_look_of_a_near_whole_car_by_hand(real_root):
     truncated, occluded, Vans or a Truck. Its box's pixels, by hand: columns 551-736, rows 186-361."""
     t = real_root / "training"
     acc = Acc()
-    car_look_stats(acc, cv2.imread(str(t / "image_2/001206.png")), read_label(t / "label_2/001206.txt"))
+    grey = cv2.cvtColor(cv2.imread(str(t / "image_2/001206.png")), cv2.COLOR_BGR2GRAY)
+    car_look_stats(acc, grey, read_label(t / "label_2/001206.txt"))
     rgb = iio.imread(t / "image_2/001206.png")[..., :3].astype(np.float64)
     patch = np.round(rgb @ [0.299, 0.587, 0.114])[186:362, 551:737]  # BT.601, as cv2's BGR2GRAY
     hand = {"labels.car_grey_mean": patch.mean(), "labels.car_grey_sd": patch.std(),
