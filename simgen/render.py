@@ -173,6 +173,13 @@ def _faceted(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.nd
     return tris, _normals(tris)
 
 
+def _lengths(v: np.ndarray) -> np.ndarray:
+    """Euclidean lengths of (..., 3) vectors: np.linalg.norm's sum of squares in its order (the
+    same bits), component by component, which numpy runs faster than a reduction over a short axis."""
+    x, y, z = v[..., 0], v[..., 1], v[..., 2]
+    return np.sqrt(x * x + y * y + z * z)
+
+
 def _normals(tris: np.ndarray) -> np.ndarray:
     """(F, 3) unit normals of (F, 3, 3) triangles."""
     n = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
@@ -264,9 +271,12 @@ class _Shader:
         lin = albedo * (sun + sky)
         if glossy.any():
             lin[glossy] += self._mirror(points[glossy], normals[glossy])
-        rest = (sky / np.maximum(sun + sky, 1e-9)).mean(axis=1)
-        rgb = np.clip(lin / self.headroom, 0.0, 1.0) ** (1 / 2.2)
-        return np.c_[rgb, np.clip(rest, 0.0, 1.0) ** (1 / 2.2)]
+        share = sky / np.maximum(sun + sky, 1e-9)
+        rest = (share[:, 0] + share[:, 1] + share[:, 2]) / 3  # the mean over channels, in its order
+        out = np.empty((len(lin), 4))
+        out[:, :3] = np.clip(lin / self.headroom, 0.0, 1.0) ** (1 / 2.2)
+        out[:, 3] = np.clip(rest, 0.0, 1.0) ** (1 / 2.2)
+        return out
 
     def gl_normals(self, normals: np.ndarray) -> np.ndarray | None:
         """The normals pyrender needs: per-pixel lighting ('pbr') reads them, the flat shader of
@@ -276,7 +286,7 @@ class _Shader:
     def _mirror(self, centres: np.ndarray, normals: np.ndarray) -> np.ndarray:
         """Radiance a clear coat or pane reflects towards the eye: sky or ground, and the sun."""
         view = self.eye - centres
-        view /= np.maximum(np.linalg.norm(view, axis=1, keepdims=True), 1e-9)
+        view /= np.maximum(_lengths(view), 1e-9)[:, None]
         cos = np.einsum("ij,ij->i", normals, view)
         n = np.where(cos[:, None] < 0, -normals, normals)  # double-sided
         cos = np.abs(cos)
@@ -284,7 +294,7 @@ class _Shader:
         r = 2 * cos[:, None] * n - view
         env = np.where(r[:, 2:3] > 0, _sky_radiance(r[:, 2]), GROUND_RADIANCE)
         half = view + self.sun
-        half /= np.maximum(np.linalg.norm(half, axis=1, keepdims=True), 1e-9)
+        half /= np.maximum(_lengths(half), 1e-9)[:, None]
         glint = np.clip(np.einsum("ij,ij->i", n, half), 0.0, 1.0) ** HIGHLIGHT_EXPONENT
         return fresnel[:, None] * (env + glint[:, None] * self.sun_rgb)
 
@@ -345,12 +355,13 @@ def _bent_normals(face_counts: list[int], tris: np.ndarray, normals: np.ndarray)
     each; tris and normals in one frame): each face normal bent by BEND towards the corner's
     direction from its part's box centre, measured in the box's half extents."""
     starts = np.cumsum([0, *face_counts[:-1]])
-    lo = np.minimum.reduceat(tris.min(axis=1), starts)
-    hi = np.maximum.reduceat(tris.max(axis=1), starts)
+    a, b, c = tris[:, 0], tris[:, 1], tris[:, 2]  # corner by corner: faster than a reduction over axis 1
+    lo = np.minimum.reduceat(np.minimum(np.minimum(a, b), c), starts)
+    hi = np.maximum.reduceat(np.maximum(np.maximum(a, b), c), starts)
     owner = np.repeat(np.arange(len(face_counts)), face_counts)
     centre, half = ((lo + hi) / 2)[owner], np.maximum((hi - lo) / 2, 1e-6)[owner]
     bent = normals[:, None, :] + BEND * (tris - centre[:, None, :]) / half[:, None, :]
-    return bent / np.linalg.norm(bent, axis=2, keepdims=True)
+    return bent / _lengths(bent)[..., None]
 
 
 def _lamp_mesh(part: Part, material) -> pyrender.Mesh:
