@@ -197,8 +197,9 @@ def _split_faceted(meshes: list[tuple[np.ndarray, np.ndarray]]) -> list[tuple[np
 
 def _primitive(tris: np.ndarray, normals: np.ndarray | None, rgba: np.ndarray, material,
                uv: np.ndarray | None = None) -> pyrender.Primitive:
-    """Faces with their vertices unshared, a colour per face (F, 4) or per corner (F, 3, 4). Normals only where pyrender
-    lights per pixel (None under its flat shader, which never reads them: less to upload)."""
+    """Faces with their vertices unshared, a colour per face (F, 4) or per corner (F, 3, 4).
+    Normals only where pyrender lights per pixel (None under its flat shader, which never reads
+    them: less to upload)."""
     return pyrender.Primitive(
         positions=tris.reshape(-1, 3).astype(np.float32),
         normals=None if normals is None else np.repeat(normals, 3, axis=0).astype(np.float32),
@@ -327,7 +328,8 @@ def _actor_meshes(bodies: list[tuple[list[Part], np.ndarray, bool]],
     elif shader.mode == "lit":
         bent = _bent_normals([len(p.mesh.faces) for p in parts], np.concatenate([t for t, _ in geo]),
                              np.concatenate([n for _, n in geo]))
-        bent = np.concatenate([b @ pose[:3, :3].T for b, (_, pose, _) in zip(np.split(bent, ends), bodies)])
+        bent = np.concatenate([b @ pose[:3, :3].T
+                               for b, (_, pose, _) in zip(np.split(bent, ends), bodies)])
         rgba = shader.colors(parts, world_tris, world_n, False, corner_normals=bent)
     else:
         rgba = shader.colors(parts, world_tris, world_n, False)
@@ -355,7 +357,7 @@ def _bent_normals(face_counts: list[int], tris: np.ndarray, normals: np.ndarray)
     each; tris and normals in one frame): each face normal bent by BEND towards the corner's
     direction from its part's box centre, measured in the box's half extents."""
     starts = np.cumsum([0, *face_counts[:-1]])
-    a, b, c = tris[:, 0], tris[:, 1], tris[:, 2]  # corner by corner: faster than a reduction over axis 1
+    a, b, c = tris[:, 0], tris[:, 1], tris[:, 2]  # corner by corner: faster than a reduction
     lo = np.minimum.reduceat(np.minimum(np.minimum(a, b), c), starts)
     hi = np.maximum.reduceat(np.maximum(np.maximum(a, b), c), starts)
     owner = np.repeat(np.arange(len(face_counts)), face_counts)

@@ -236,4 +236,5 @@ def test_the_look_of_a_near_whole_car_by_hand(real_root):
     for key, value in hand.items():
         (got,) = np.concatenate(acc.values[key])
         assert got == pytest.approx(value, rel=5e-3, abs=0.05), key
-    assert hand["labels.car_grey_mean"] < 100 and hand["labels.car_bottom_darkening"] > 10  # a dark car, darker below
+    # a dark car, darker still below
+    assert hand["labels.car_grey_mean"] < 100 and hand["labels.car_bottom_darkening"] > 10
