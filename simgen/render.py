@@ -183,7 +183,7 @@ def _lengths(v: np.ndarray) -> np.ndarray:
 def _normals(tris: np.ndarray) -> np.ndarray:
     """(F, 3) unit normals of (F, 3, 3) triangles."""
     n = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
-    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+    n /= np.maximum(_lengths(n), 1e-300)[:, None]
     return n
 
 
@@ -258,7 +258,8 @@ class _Shader:
             return np.c_[albedo, np.ones(len(albedo))]
         glossy = np.repeat([p.material.name in GLOSSY for p in parts], counts)
         if corner_normals is None:
-            return self._lit(albedo, glossy, tris.mean(axis=1), normals)
+            centres = (tris[:, 0] + tris[:, 1] + tris[:, 2]) / 3  # the mean over corners, in its order
+            return self._lit(albedo, glossy, centres, normals)
         rgba = self._lit(np.repeat(albedo, 3, axis=0), np.repeat(glossy, 3), tris.reshape(-1, 3),
                          corner_normals.reshape(-1, 3))
         return rgba.reshape(-1, 3, 4)
