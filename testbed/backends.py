@@ -28,6 +28,14 @@ def _render_threads(workers: int) -> str:
 GC_THRESHOLD = (20000, 20, 20)
 
 
+# numpy's BLAS (OpenBLAS) starts a thread per core in every process that loads it; a pool already
+# puts a process on each core, and their BLAS threads then spin against each other: `testbed
+# fidelity` on 80 urban frames with 2 workers took 5.8 s with them and 2.5 s with one each
+# (results/fidelity/README.md). A process reads these when it loads its BLAS, before any
+# initializer runs, so the parent sets them for the workers it is about to spawn.
+BLAS_THREAD_VARS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+
+
 def _init_worker(threads: str) -> None:
     os.environ.setdefault("LP_NUM_THREADS", threads)
     gc.set_threshold(*GC_THRESHOLD)
@@ -46,6 +54,8 @@ class LocalBackend:
         if self.workers <= 1 or len(jobs) <= 1:
             return [fn(j) for j in tqdm(jobs, desc=desc, unit="job")]
         if self._pool is None:
+            for var in BLAS_THREAD_VARS:  # inherited by the spawned workers
+                os.environ.setdefault(var, "1")
             self._pool = ProcessPoolExecutor(self.workers, mp_context=mp.get_context("spawn"),
                                              initializer=_init_worker,
                                              initargs=(_render_threads(self.workers),))

@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import math
+import os
 from pathlib import Path
 
 import pytest
 
-from testbed.backends import LocalBackend, RayBackend
+from testbed.backends import BLAS_THREAD_VARS, LocalBackend, RayBackend
 from testbed.report import metric_rows, range_table, summary_table
 from testbed.stages import digest
 from testbed.sweep import (
@@ -93,6 +94,15 @@ def test_backends_return_results_in_job_order():
         assert RayBackend(workers=2).map(digest, jobs) == want
     finally:
         ray.shutdown()
+
+
+def test_pool_workers_start_with_one_blas_thread_each(monkeypatch):
+    """A pool fills the cores with processes: each worker's BLAS must not start a thread per core
+    on top (they spun against each other; results/fidelity/README.md)."""
+    for var in BLAS_THREAD_VARS:
+        monkeypatch.delenv(var, raising=False)
+    with LocalBackend(2) as backend:
+        assert backend.map(os.getenv, list(BLAS_THREAD_VARS)) == ["1"] * len(BLAS_THREAD_VARS)
 
 
 def _ev(ap3d_mod: float) -> dict:
