@@ -29,7 +29,8 @@ VERGE_REACH = 60.0  # cross-street traffic runs from -60 to 60 m across the main
 # Vans, 28,742 Cars; the sizes of each class come from the same labels: simgen.meshes.SIZE_STATS).
 PARKED_MIX = {"Car": 0.908, "Van": 0.092}
 # KITTI's VW Passat around its LiDAR (x -2.9 to 1.3 m), plus 5 m of free lane ahead of its bumper.
-EGO_FOOTPRINT = shapely.box(-2.9, -1.0, 6.3, 1.0)
+EGO_FREE_AHEAD = 6.3  # where that free lane ends, m ahead of the LiDAR
+EGO_FOOTPRINT = shapely.box(-2.9, -1.0, EGO_FREE_AHEAD, 1.0)
 
 
 def _values(spec: SceneSpec, seed: int, frame: int) -> dict:
@@ -188,6 +189,24 @@ class _Traffic:
         self.actors.append(Actor(len(self.actors) + 1, cls, build_actor_parts(recipe), pose,
                                  velocity=vel * heading, yaw_rate=yaw_rate, recipe=recipe))
 
+    def lead(self, share: float, headway_s: float, ego_speed: float) -> None:
+        """With probability `share`, a vehicle ahead of the ego in its lane, moving at the ego's
+        speed, its rear the distance the ego covers in `headway_s` beyond the ego's free lane. In
+        urban car following, time gaps are mostly 1-3 s (the two-second rule). No draw at share 0,
+        so specs without car following keep their worlds."""
+        if not (share > 0 and self.spec.rig.type == "onboard" and self.spec.traffic.mix):
+            return
+        rng, road = self.rng, self.road
+        if rng.uniform() >= share:
+            return
+        cls = _pick_class(self.spec.traffic.mix, rng)
+        recipe = _recipe(cls, self.spec, rng)
+        rear = EGO_FREE_AHEAD + MARGIN + ego_speed * headway_s  # beyond the free lane's margin
+        s = rear + recipe["dims"][2] / 2 + 0.05  # 5 cm clear of it: footprints that touch collide
+        d = road.lane_centre(road.ego_lane) + float(np.clip(rng.normal(0, self.sd_lat), -0.4, 0.4))
+        self.add(cls, recipe, road.pose(s, d, 0.0, rng.normal(0, self.sd_yaw)), ego_speed,
+                 ego_speed * road.curvature)
+
     def moving(self, dens: float) -> None:
         """Moving traffic, lane by lane; gaps exponential with the spec's mean density."""
         road, rng, mix = self.road, self.rng, self.spec.traffic.mix
@@ -298,6 +317,8 @@ def _place_actors(spec: SceneSpec, v: dict, road: RoadLayout, obstacles: list[Ob
                   rng: np.random.Generator, frontage: Frontage | None = None) -> list[Actor]:
     """Every actor of the frame, in the fixed order that makes the seed reproducible."""
     traffic = _Traffic(spec, v, road, obstacles, rng, frontage)
+    traffic.lead(float(v["traffic.lead_vehicle"]), float(v["traffic.headway_s"]),
+                 float(v.get("rig.ego_speed", 0.0)))
     traffic.moving(float(v["traffic.vehicles_per_100m"]))
     traffic.crossing(float(v["traffic.vehicles_per_100m"]))
     traffic.parked(float(v["traffic.parked_per_100m"]))

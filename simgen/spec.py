@@ -83,6 +83,10 @@ class TrafficSpec(Strict):
     pedestrians_per_100m: factor(float, 0.0, 50.0) = 3.0  # per sidewalk
     cyclists_per_100m: factor(float, 0.0, 20.0) = 0.5  # per direction
     max_distance: factor(float, 10.0, 400.0) = 120.0  # along the road, ahead of the sensor
+    # Car following (simgen.sample._Traffic.lead): the probability that a vehicle drives ahead of
+    # the ego in its lane, at the ego's speed, `headway_s` seconds ahead of the ego's free lane.
+    lead_vehicle: factor(float, 0.0, 1.0) = 0.0
+    headway_s: factor(float, 0.0, 10.0) = 2.0
     car_park_occupancy: factor(float, 0.0, 1.0) = 0.5  # share of car-park stalls taken (frontage)
     speed: factor(float, 0.0, 40.0) = 12.0  # m/s of moving traffic
     heading_sd_deg: factor(float, 0.0, 30.0) = 2.0
@@ -183,7 +187,7 @@ class CameraSpec(Strict):
     full_well_e: factor(float, 0.0, 1e6) = 10000.0  # electrons at the white level; 0 = no noise
     read_noise_e: factor(float, 0.0, 1000.0) = 10.0
     bayer: bool = True  # RGGB colour filter array and demosaicing
-    gamma: factor(float, 1.0, 3.0) = 2.2  # output curve (sRGB-like 2.2; 1 = linear)
+    gamma: factor(float, 1.0, 3.0) = 1.2  # output curve: 1.2 KITTI-like (simgen.camera.KEY), 2.2 sRGB, 1 linear
 
 
 class WeatherSpec(Strict):

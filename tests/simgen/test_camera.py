@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from simgen.camera import GAMMA, KEY, LOG_FLOOR, _noisy, _vignetting, expose
+from simgen.camera import CROSSTALK, GAMMA, KEY, LOG_FLOOR, _noisy, _vignetting, expose
 from simgen.world import CameraResponse
 
 K = np.array([[721.5, 0.0, 609.6], [0.0, 721.5, 172.9], [0.0, 0.0, 1.0]])
@@ -18,7 +18,7 @@ def _linear(img8: np.ndarray, gamma: float = GAMMA) -> np.ndarray:
     return (img8.astype(np.float64) / 255.0) ** gamma
 
 
-@pytest.mark.parametrize("ev, gamma", [(-1.0, 2.2), (0.0, 2.2), (0.5, 2.2), (0.0, 1.0)])
+@pytest.mark.parametrize("ev, gamma", [(-1.0, 2.2), (0.0, 2.2), (0.5, 2.2), (0.0, 1.0), (0.0, 1.2)])
 def test_auto_exposure_brings_the_log_average_luminance_to_the_key(ev, gamma):
     rng = np.random.default_rng(0)
     lin = rng.uniform(0.02, 0.3, (120, 160, 3))
@@ -50,15 +50,31 @@ def test_noise_has_the_shot_plus_read_variance_of_the_signal():
     assert out.mean() == pytest.approx(0.3, abs=4 * expected_sd / 400)
 
 
-def test_demosaicing_a_uniform_colour_gives_it_back_inside_the_frame():
-    lin = np.broadcast_to(np.array([0.05, 0.10, 0.20]), (64, 96, 3)).copy()
+def test_demosaicing_a_uniform_colour_gives_back_its_mix_through_the_colour_filters():
+    c = np.array([0.05, 0.10, 0.20])
+    lin = np.broadcast_to(c, (64, 96, 3)).copy()
     cam = CameraResponse(**{**CLEAN.__dict__, "bayer": True})
     out = expose(lin, K, cam, np.random.default_rng(0))
     inner = out[2:-2, 2:-2].reshape(-1, 3)
     assert np.ptp(inner, axis=0).max() <= 1  # one grey level of rounding
-    # The colour's ratios survive: the exposure scales all three channels alike.
-    ratio = _linear(inner.mean(axis=0, keepdims=True).round())[0]
-    assert ratio[2] / ratio[0] == pytest.approx(4.0, rel=0.05)
+    # Each channel keeps 1 - 2 s of its own light and s of each other's (s = CROSSTALK), then
+    # the exposure scales all three alike: by hand, 0.7 R + 0.15 (G + B) and so on.
+    mixed = (1 - 2 * CROSSTALK) * c + CROSSTALK * (c.sum() - c)
+    gain = KEY / np.exp(np.log(LOG_FLOOR + c @ np.array([0.2126, 0.7152, 0.0722])))
+    expected = np.round((gain * mixed) ** (1 / cam.gamma) * 255)
+    assert np.abs(inner.mean(axis=0) - expected).max() <= 0.5
+
+
+def test_grey_stays_grey_through_the_colour_filters_and_a_primary_is_desaturated():
+    cam = CameraResponse(**{**CLEAN.__dict__, "bayer": True, "gamma": 1.0, "exposure_ev": -1.0})
+    grey = expose(np.full((32, 32, 3), 0.2), K, cam, np.random.default_rng(0))[4:-4, 4:-4]
+    assert np.ptp(grey.reshape(-1, 3).mean(axis=0)) == 0
+    red = np.zeros((32, 32, 3))
+    red[..., 0] = 0.2
+    out = expose(red, K, cam, np.random.default_rng(0))[4:-4, 4:-4].reshape(-1, 3).mean(axis=0)
+    # Linear output: green and blue each get CROSSTALK / (1 - 2 CROSSTALK) of red's signal.
+    assert out[1] == out[2]
+    assert out[1] / out[0] == pytest.approx(CROSSTALK / (1 - 2 * CROSSTALK), abs=0.01)
 
 
 def test_same_generator_same_image_and_noise_changes_it():

@@ -1,0 +1,50 @@
+"""Car following (traffic.lead_vehicle): the vehicle ahead of the ego stands where the time gap
+puts it, moves with the ego, and a spec without it keeps its worlds."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from simgen.sample import EGO_FREE_AHEAD, MARGIN, sample_world
+from simgen.spec import spec_from_dict
+
+
+def _spec(**traffic):
+    return spec_from_dict({
+        "name": "follow", "road": {"type": "straight", "lanes_per_direction": 2, "ego_lane": 1},
+        "rig": {"type": "onboard", "ego_speed": 8.0},
+        "traffic": {"vehicles_per_100m": 2.0, "heading_sd_deg": 0.0, "lateral_sd": 0.0, **traffic}})
+
+
+@pytest.mark.parametrize("frame", [0, 1, 2])
+def test_the_leader_is_the_time_gap_ahead_in_the_ego_lane_at_the_ego_speed(frame):
+    world = sample_world(_spec(lead_vehicle=1.0, headway_s=1.5), 4, frame)
+    leader = world.actors[0]  # placed first
+    _, _, length = leader.recipe["dims"]
+    x, y, z = leader.pose[:3, 3]
+    # The LiDAR is at the ego lane's centre: the leader's rear 8 m/s x 1.5 s beyond the ego's
+    # free lane and its margin (plus 5 cm), on the lane's centre line, heading down the road.
+    assert x - length / 2 == pytest.approx(EGO_FREE_AHEAD + MARGIN + 12.0 + 0.05, abs=1e-9)
+    assert y == pytest.approx(0.0, abs=1e-9) and z == pytest.approx(0.0, abs=1e-9)
+    assert np.allclose(leader.pose[:3, 0], [1.0, 0.0, 0.0], atol=1e-12)
+    assert np.allclose(leader.velocity, world.ego_velocity, atol=1e-12)
+    assert leader.cls in ("Car", "Van", "Truck")
+
+
+def test_a_spec_without_car_following_keeps_its_worlds():
+    a = sample_world(_spec(), 4, 0)
+    b = sample_world(_spec(lead_vehicle=0.0, headway_s=3.0), 4, 0)
+    assert [x.cls for x in a.actors] == [x.cls for x in b.actors]
+    assert all(np.array_equal(p.pose, q.pose) for p, q in zip(a.actors, b.actors))
+    nearest = min(abs(x.pose[0, 3]) for x in a.actors if abs(x.pose[1, 3]) < 1.0)
+    assert nearest > EGO_FREE_AHEAD  # nothing in the ego's own free lane
+
+
+def test_leaders_follow_in_about_the_share_of_frames():
+    spec = _spec(lead_vehicle=0.5, headway_s=1.0, vehicles_per_100m=0.0)
+    rear = EGO_FREE_AHEAD + MARGIN + 8.0 + 0.05
+    led = [any(abs(a.pose[0, 3] - a.recipe["dims"][2] / 2 - rear) < 1e-9 for a in w.actors)
+           for w in (sample_world(spec, 7, i) for i in range(24))]
+    # 24 draws at p = 0.5: 12 +- 2.4; the bounds are 4 sd out.
+    assert 3 <= sum(led) <= 21
