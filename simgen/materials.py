@@ -64,8 +64,11 @@ def paint_material(name: str, color) -> Material:
 # --- Ground. -------------------------------------------------------------------------------
 # Aged asphalt: the binder wears off the aggregate and NIR reflectance rises from about 0.05
 # (new) to about 0.2 (Herold & Roberts 2004, Santa Barbara asphalt road spectral library);
-# KITTI's roads read a median 0.24 at 4-20 m. Lommel-Seeliger (see above).
-ASPHALT = Material("asphalt", (0.09, 0.09, 0.10), 0.20, incidence_exponent=0.0)
+# KITTI's roads read a median 0.24 at 4-20 m. Lommel-Seeliger (see above). To the camera: solar
+# reflectance about 0.05 new, 0.10-0.18 aged, with the aggregate (pavement albedo surveys, e.g.
+# Pomerantz et al., LBNL); city streets are mostly aged, and the visible lies a little below the
+# solar figure, which the near infrared raises: 0.12.
+ASPHALT = Material("asphalt", (0.12, 0.12, 0.13), 0.20, incidence_exponent=0.0)
 # White line paint with glass beads, dry, in service: R_L >= 100 mcd m^-2 lx^-1 (EN 1436 class R2,
 # the common minimum for white markings); pi x 0.100 = 0.31, flat over the grazing angles.
 MARKING = Material("marking", (0.85, 0.85, 0.82), 0.31, incidence_exponent=0.0)
