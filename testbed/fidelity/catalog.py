@@ -90,6 +90,7 @@ STATS: tuple[Stat, ...] = (
     Stat("lidar.visible_car_points_40_80m", "points on a fully visible Car at 40-80 m", "",
          car_points(40, 80, visible=True)),
     Stat("images.grey_mean", "mean grey level", "", med("images.grey_mean")),
+    Stat("images.grey_sd", "grey standard deviation (contrast)", "", med("images.grey_sd")),
     Stat("images.saturation_mean", "mean HSV saturation", "", med("images.saturation_mean")),
     Stat("images.mean_abs_dx", "mean |dI/dx| of the grey image", "grey levels",
          med("images.mean_abs_dx")),

@@ -42,6 +42,7 @@ def image_stats(acc: Acc, img: np.ndarray, nbytes: int) -> np.ndarray:
     mag = np.sqrt(np.square(dx[:-1], dtype=np.float32) + np.square(dy[:, :-1], dtype=np.float32))
     acc.put("images.png_bytes", nbytes)
     acc.put("images.grey_mean", grey.mean())
+    acc.put("images.grey_sd", grey.std())
     acc.put("images.saturation_mean", sat.mean())
     acc.put("images.mean_abs_dx", dx.mean())
     acc.put("images.flat_share", np.count_nonzero(dx < FLAT) / dx.size)

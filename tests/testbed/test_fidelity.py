@@ -92,6 +92,7 @@ def test_report_numbers_match_a_hand_computation_on_one_real_frame(real_root, tm
         "lidar.near_ground_share_right": ground[near & (scan[:, 1] < 0)].mean(),
         "images.png_bytes": (t / "image_2/000000.png").stat().st_size,
         "images.mean_abs_dx": dx.mean(),
+        "images.grey_sd": grey.std(),
         "images.flat_share": np.mean(dx < 1),
         "labels.objects_per_frame": 1,
         "labels.proj_gap_px": _hand_proj_gap(t / "label_2/000000.txt", t / "calib/000000.txt",
