@@ -187,7 +187,8 @@ class CameraSpec(Strict):
     full_well_e: factor(float, 0.0, 1e6) = 10000.0  # electrons at the white level; 0 = no noise
     read_noise_e: factor(float, 0.0, 1000.0) = 10.0
     bayer: bool = True  # RGGB colour filter array and demosaicing
-    gamma: factor(float, 1.0, 3.0) = 1.2  # output curve: 1.2 KITTI-like (simgen.camera.KEY), 2.2 sRGB, 1 linear
+    # The output curve: 1.2 is KITTI-like (simgen.camera.KEY), 2.2 sRGB-like, 1 linear.
+    gamma: factor(float, 1.0, 3.0) = 1.2
 
 
 class WeatherSpec(Strict):

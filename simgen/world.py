@@ -98,7 +98,7 @@ class CameraResponse:
     full_well_e: float = 10000.0  # electrons at the white level (shot noise); 0 = no noise
     read_noise_e: float = 10.0
     bayer: bool = True  # sample through an RGGB colour filter array, then demosaic
-    gamma: float = 1.2  # output curve, value = signal ** (1 / gamma): KITTI-like (simgen.camera.KEY)
+    gamma: float = 1.2  # output curve, value = signal ** (1 / gamma); KITTI-like (camera.KEY)
 
 
 @dataclass

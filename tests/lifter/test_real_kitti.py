@@ -105,7 +105,8 @@ def test_detect_lift_evaluate_on_real_frames(tmp_path):
     pred = detect_dataset(REAL, tmp_path / "det", split=None, progress=False)
     found, false_pos = 0, []
     for fid in ds.ids():
-        dets = np.array([o.bbox for o in pred[fid] if o.type == "Car" and o.score >= 0.3]).reshape(-1, 4)
+        dets = [o.bbox for o in pred[fid] if o.type == "Car" and o.score >= 0.3]
+        dets = np.array(dets).reshape(-1, 4)
         labels = ds.labels(fid)
         every = np.array([o.bbox for o in labels]).reshape(-1, 4)
         cars = np.array([o.bbox for o in labels if o.type in ("Car", "Van")]).reshape(-1, 4)
@@ -114,10 +115,12 @@ def test_detect_lift_evaluate_on_real_frames(tmp_path):
             false_pos.append(int((pairwise_iou(dets, every).max(axis=1, initial=0.0) < 0.5).sum()))
         else:
             false_pos.append(0)
-    assert found >= DETECTED_AT_05 and np.mean(false_pos) <= FALSE_POSITIVES_A_FRAME, (found, false_pos)
+    assert found >= DETECTED_AT_05, found
+    assert np.mean(false_pos) <= FALSE_POSITIVES_A_FRAME, false_pos
 
     lift_dataset(REAL, tmp_path / "det", "fit", tmp_path / "fit", None, progress=False)
-    r = evaluate_folders(REAL / "training" / "label_2", tmp_path / "fit", classes=("Car",), progress=False)
+    r = evaluate_folders(REAL / "training" / "label_2", tmp_path / "fit", classes=("Car",),
+                         progress=False)
     assert r.n_gt["Car"][1] == 14 and 0.0 <= r.ap_loose["Car"]["3d"]["R40"][1] <= 32.5
     placed = 0
     for fid in ds.ids():
