@@ -204,6 +204,8 @@ class _Traffic:
         rear = EGO_FREE_AHEAD + MARGIN + ego_speed * headway_s  # beyond the free lane's margin
         s = rear + recipe["dims"][2] / 2 + 0.05  # 5 cm clear of it: footprints that touch collide
         d = road.lane_centre(road.ego_lane) + float(np.clip(rng.normal(0, self.sd_lat), -0.4, 0.4))
+        if s > self.s_hi:  # beyond the traffic's reach (or the road's end): no vehicle to follow
+            return
         self.add(cls, recipe, road.pose(s, d, 0.0, rng.normal(0, self.sd_yaw)), ego_speed,
                  ego_speed * road.curvature)
 

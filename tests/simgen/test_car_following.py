@@ -48,3 +48,10 @@ def test_leaders_follow_in_about_the_share_of_frames():
            for w in (sample_world(spec, 7, i) for i in range(24))]
     # 24 draws at p = 0.5: 12 +- 2.4; the bounds are 4 sd out.
     assert 3 <= sum(led) <= 21
+
+
+def test_no_leader_beyond_the_traffics_reach():
+    spec = _spec(lead_vehicle=1.0, headway_s=10.0, vehicles_per_100m=0.0, max_distance=60.0)
+    world = sample_world(spec, 4, 0)  # 8 m/s x 10 s puts its rear 86.6 m ahead
+    assert not any(abs(a.pose[1, 3]) < 0.5 and a.pose[0, 3] > EGO_FREE_AHEAD for a in world.actors
+                   if a.cls in ("Car", "Van", "Truck"))
