@@ -21,7 +21,7 @@ from tqdm import tqdm
 
 from simgen import camera
 from simgen.factors import factor_rng
-from simgen.look import _radiance_table
+from simgen.look import rendered_radiance
 from simgen.render import render
 from simgen.sample import sample_world
 from simgen.spec import load_spec
@@ -61,25 +61,20 @@ def main() -> None:
     for i in tqdm(range(args.frames), desc="render"):
         w = sample_world(spec, spec.seed, i)
         out = render(w)
-        frames.append((_radiance_table(out.headroom)[out.color], w.rig.intrinsics(), w.camera, i))
+        frames.append((rendered_radiance(out.color, out.headroom), w.rig.intrinsics(), w.camera, i))
     print(f"{args.spec}, {args.frames} frames; KITTI training set: mean {KITTI_MEAN.mean():.1f}, "
           f"SD {KITTI_SD.mean():.1f} (channel averages)")
     print("| key | gamma | mean R / G / B | SD R / G / B | mean | SD | saturation |")
     print("|---|---|---|---|---|---|---|")
-    default_key = camera.KEY
-    try:
-        for gamma in args.gammas:
-            for key in args.keys:
-                camera.KEY = key
-                imgs = [camera.expose(lin, K, dataclasses.replace(cam, gamma=gamma),
-                                      factor_rng(spec.seed, i, "look"))
-                        for lin, K, cam, i in frames]
-                m, sd = pooled(imgs)
-                print(f"| {key:.2f} | {gamma:.1f} | {' / '.join(f'{v:.1f}' for v in m)} | "
-                      f"{' / '.join(f'{v:.1f}' for v in sd)} | {m.mean():.1f} | {sd.mean():.1f} | "
-                      f"{saturation(imgs):.1f} |")
-    finally:
-        camera.KEY = default_key
+    for gamma in args.gammas:
+        for key in args.keys:
+            imgs = [camera.expose(lin, K, dataclasses.replace(cam, gamma=gamma),
+                                  factor_rng(spec.seed, i, "look"), key=key)
+                    for lin, K, cam, i in frames]
+            m, sd = pooled(imgs)
+            print(f"| {key:.2f} | {gamma:.1f} | {' / '.join(f'{v:.1f}' for v in m)} | "
+                  f"{' / '.join(f'{v:.1f}' for v in sd)} | {m.mean():.1f} | {sd.mean():.1f} | "
+                  f"{saturation(imgs):.1f} |")
 
 
 if __name__ == "__main__":

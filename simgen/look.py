@@ -87,7 +87,7 @@ def apply_look(color: np.ndarray, depth: np.ndarray, K: np.ndarray, weather: Wea
     clear = not (weather.fog_extinction > 0 or weather.rain_rate > 0)
     if camera is not None and sensor not in ("night_vision", "thermal") and clear \
             and color.dtype == np.uint8:  # the common frame: one table lookup per pixel
-        return expose(_radiance_table(headroom)[color], K, camera, rng)
+        return expose(rendered_radiance(color, headroom), K, camera, rng)
     img = _encoded(color, headroom)
     if weather.fog_extinction > 0:
         img = fog(img, depth, K, weather.fog_extinction, "night" if sensor == "thermal" else light.time)
@@ -110,6 +110,11 @@ def _encoded(color: np.ndarray, headroom: float) -> np.ndarray:
 def _radiance(img: np.ndarray) -> np.ndarray:
     """Gamma-encoded radiance to linear radiance."""
     return np.clip(img, 0.0, None) ** GAMMA
+
+
+def rendered_radiance(color: np.ndarray, headroom: float) -> np.ndarray:
+    """The linear radiance of the renderer's uint8 colours (what `expose` takes)."""
+    return _radiance_table(headroom)[color]
 
 
 @lru_cache(maxsize=8)
