@@ -37,20 +37,18 @@ def render_breakdown(spec, n: int) -> None:
         worlds.append(sample_world(spec, spec.seed, i))
         sample_ms.append(1000 * (time.perf_counter() - t0))
     r = renderer(worlds[0].rig.width, worlds[0].rig.height)
-    scene, _, flags, _ = build_scene(worlds[0])  # warm-up: shaders compile on the first render
-    r.render(scene, flags=flags)
+    build_scene(worlds[0]).colour_pass(r)  # warm-up: shaders compile on the first render
     t = {"build": [], "colour": [], "seg+depth": [], "shadows": [], "look": [], "labels": []}
     for w in worlds:
         t0 = time.perf_counter()
-        scene, seg, flags, casters = build_scene(w)
+        built = build_scene(w)
         t1 = time.perf_counter()
-        color, _ = r.render(scene, flags=flags)
+        color = built.colour_pass(r)
         t2 = time.perf_counter()
-        ids, depth = r.render(scene, flags=RenderFlags.SEG, seg_node_map=seg)
-        inst = ids[..., 0].astype(np.uint16) + 256 * ids[..., 1].astype(np.uint16)
+        inst, depth = built.instance_pass(r)
         t3 = time.perf_counter()
-        lit = bool(flags & RenderFlags.RGBA)
-        rgb = shade(w, color, depth, inst, casters) if lit else color[..., :3]
+        lit = bool(built.flags & RenderFlags.RGBA)
+        rgb = shade(w, color, depth, inst, built.casters) if lit else color[..., :3]
         t4 = time.perf_counter()
         apply_look(rgb, depth, w.rig.intrinsics(), w.weather, w.light, w.sensor,
                    factor_rng(0, 0, "look"), HEADROOM if lit else 1.0, w.camera)

@@ -195,15 +195,16 @@ def _split_faceted(meshes: list[tuple[np.ndarray, np.ndarray]]) -> list[tuple[np
     return list(zip(np.split(tris, ends), np.split(_normals(tris), ends)))
 
 
-def _primitive(tris: np.ndarray, normals: np.ndarray | None, rgba: np.ndarray, material,
+def _primitive(tris: np.ndarray, normals: np.ndarray | None, rgba: np.ndarray | None, material,
                uv: np.ndarray | None = None) -> pyrender.Primitive:
-    """Faces with their vertices unshared, a colour per face (F, 4) or per corner (F, 3, 4).
-    Normals only where pyrender lights per pixel (None under its flat shader, which never reads
-    them: less to upload)."""
+    """Faces with their vertices unshared, a colour per face (F, 4) or per corner (F, 3, 4), or
+    none (drawn by the instance pass only). Normals only where pyrender lights per pixel (None
+    under its flat shader, which never reads them: less to upload)."""
     return pyrender.Primitive(
         positions=tris.reshape(-1, 3).astype(np.float32),
         normals=None if normals is None else np.repeat(normals, 3, axis=0).astype(np.float32),
-        color_0=(np.repeat(rgba, 3, axis=0) if rgba.ndim == 2 else rgba.reshape(-1, 4)).astype(np.float32),
+        color_0=None if rgba is None else
+        (np.repeat(rgba, 3, axis=0) if rgba.ndim == 2 else rgba.reshape(-1, 4)).astype(np.float32),
         texcoord_0=None if uv is None else uv.reshape(-1, 2).astype(np.float32), material=material)
 
 
@@ -308,13 +309,17 @@ def _thermal(part: Part, moving: bool) -> tuple[float, float, float]:
     return (t, t, t)
 
 
-def _actor_meshes(bodies: list[tuple[list[Part], np.ndarray, bool]],
-                  shader: _Shader) -> tuple[list[pyrender.Mesh], Occluders, Reach]:
-    """One flat-shaded primitive per actor (parts in the actor frame), all actors shaded in one
-    vectorised pass in the world frame; their triangles (world frame) as shadow casters; and
-    each body's box, where it can hide the sky."""
+def _actor_meshes(bodies: list[tuple[list[Part], np.ndarray, bool]], shader: _Shader,
+                  rng: np.random.Generator | None = None
+                  ) -> tuple[list[pyrender.Mesh], pyrender.Mesh | None, Occluders, Reach]:
+    """One flat-shaded mesh per actor (parts in the actor frame), all actors shaded in one
+    vectorised pass in the world frame; with `rng` (the lit look with textures) also all actors
+    in one world-frame mesh for the colour pass, glass, paint and plates wearing their textures
+    (_texture_coordinates; one primitive per texture, where one per actor and texture would cost
+    pyrender a draw call each); their triangles (world frame) as shadow casters; and each body's
+    box, where it can hide the sky."""
     if not bodies:
-        return ([], Occluders(np.zeros((0, 3, 3), np.float32), np.zeros(0, np.float32)),
+        return ([], None, Occluders(np.zeros((0, 3, 3), np.float32), np.zeros(0, np.float32)),
                 Reach(np.zeros((0, 4, 4)), np.zeros((0, 3)), np.zeros((0, 3))))
     shared = [_shared(parts) for parts, _, _ in bodies]
     reach = Reach(np.array([np.linalg.inv(pose) for _, pose, _ in bodies]),
@@ -336,9 +341,66 @@ def _actor_meshes(bodies: list[tuple[list[Part], np.ndarray, bool]],
         rgba = shader.colors(parts, world_tris, world_n, False)
     world_v = np.concatenate([v @ pose[:3, :3].T + pose[:3, 3] for (v, _), (_, pose, _) in zip(shared, bodies)])
     faces = _joint_faces([f for _, f in shared], [len(v) for v, _ in shared])
-    return ([pyrender.Mesh([_primitive(t, shader.gl_normals(n), c, _PLAIN)])
-             for (t, n), c in zip(geo, np.split(rgba, ends))],
-            Occluders.of_parts(parts, world_tris, (world_v, faces)), reach)
+    casters = Occluders.of_parts(parts, world_tris, (world_v, faces))
+    if rng is None:
+        return ([pyrender.Mesh([_primitive(t, shader.gl_normals(n), c, _PLAIN)])
+                 for (t, n), c in zip(geo, np.split(rgba, ends))], None, casters, reach)
+    # Each actor draws a shift of its glass and paint and a plate of the plates' tile.
+    per_face = np.diff(np.r_[0, ends, len(world_tris)])
+    shift = np.repeat(rng.uniform(0.0, 1.0, len(bodies)), per_face)
+    plate = np.repeat(rng.integers(textures.PLATES_PER_TILE, size=len(bodies)), per_face)
+    prims, plain = [], np.ones(len(world_tris), bool)
+    gain = np.array([textures.MAX_GAIN] * 3 + [1.0])
+    worn = _texture_coordinates(parts, np.concatenate([t for t, _ in geo]), np.concatenate([n for _, n in geo]),
+                                shift, plate)
+    for kind, (idx, uv) in worn.items():
+        prims.append(_primitive(world_tris[idx], None, rgba[idx] * gain, _textured(kind, 0), uv))
+        plain[idx] = False
+    prims.append(_primitive(world_tris[plain], None, rgba[plain], _PLAIN))
+    # The instance pass sets one colour per actor: its own meshes need no colours.
+    return ([pyrender.Mesh([_primitive(t, None, None, _PLAIN)]) for t, _ in geo], pyrender.Mesh(prims),
+            casters, reach)
+
+
+def _texture_coordinates(parts: list[Part], tris: np.ndarray, normals: np.ndarray, shift: np.ndarray,
+                         plate: np.ndarray) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Per texture the parts wear (textures.OF_ACTOR_MATERIAL): the indices of its faces (in the
+    order of `tris`, each in its actor's frame: x forward, y left, z up) and their (n, 3, 2)
+    texture coordinates. These run along the car in metres (across it on faces towards the
+    front or back); up each pane's height on glass (v, 0 at its foot), up the car in metres on
+    paint (along and across it on bonnet, roof and boot), across a plate's face seen from outside
+    on plates. `shift` (per face) moves glass and paint along their tiles, `plate` (per face)
+    picks a plate of its tile."""
+    counts = [len(p.mesh.faces) for p in parts]
+    owner = np.repeat(np.arange(len(parts)), counts)
+    kinds = sorted(textures.ACTOR_MAKERS)
+    code = np.array([kinds.index(textures.OF_ACTOR_MATERIAL[p.material.name])
+                     if p.material.name in textures.OF_ACTOR_MATERIAL else -1 for p in parts])[owner]
+    starts = np.cumsum([0, *counts[:-1]])
+    lo = np.minimum.reduceat(tris.min(axis=1), starts)[owner]  # each face's part's box
+    hi = np.maximum.reduceat(tris.max(axis=1), starts)[owner]
+    out = {}
+    for k, kind in enumerate(kinds):
+        idx = np.flatnonzero(code == k)
+        if not len(idx):
+            continue
+        t, n, a, b, sh = tris[idx], normals[idx], lo[idx], hi[idx], shift[idx, None]
+        v = (t[..., 2] - a[:, 2:]) / np.maximum(b[:, 2:] - a[:, 2:], 1e-9)
+        side = (np.abs(n[:, 1]) >= np.abs(n[:, 0]))[:, None]
+        along = np.where(side, t[..., 0], t[..., 1])
+        if kind == "glass":
+            u = along / textures.GLASS_TILE_M + sh
+        elif kind == "paint":
+            up = (np.abs(n[:, 2]) >= 0.7)[:, None]
+            tile_u, tile_v = textures.PAINT_TILE_M
+            u = np.where(up, t[..., 0], along) / tile_u + sh
+            v = np.where(up, t[..., 1], t[..., 2]) / tile_v + sh
+        else:  # seen from the front (+x) the plate's left is -y, from behind +y
+            across = (t[..., 1] - a[:, 1:2]) / np.maximum(b[:, 1:2] - a[:, 1:2], 1e-9)
+            u = np.where(n[:, :1] >= 0, across, 1.0 - across)
+            v = (v + plate[idx, None]) / textures.PLATES_PER_TILE
+        out[kind] = (idx, np.stack([u, v], axis=2))
+    return out
 
 
 # Body panels are curved where the meshes are flat: a door's skin turns through about 30 deg
@@ -497,9 +559,41 @@ def _seg_code(actor_id: int) -> tuple[int, int, int]:
     return (actor_id % 256, actor_id // 256, 0)
 
 
-def build_scene(world: World) -> tuple[pyrender.Scene, dict, int, Casters]:
-    """The pyrender scene of a world at t = 0, its segmentation map (node -> colour), the render
-    flags of its colour pass and what darkens that pass (shadow casters, the actors' reach)."""
+@dataclass
+class BuiltScene:
+    """A world's pyrender scene at t = 0 with what its two passes need: the segmentation map
+    (node -> colour), the colour pass's render flags, what darkens that pass (shadow casters, the
+    actors' reach), and, where the colour pass draws all actors as one textured mesh, each
+    actor's own mesh (drawn by the instance pass only) and that one mesh (by the colour pass)."""
+
+    scene: pyrender.Scene
+    seg: dict
+    flags: int
+    casters: Casters
+    actor_meshes: list[pyrender.Mesh]
+    colour_actors: pyrender.Mesh | None = None
+
+    def colour_pass(self, r: pyrender.OffscreenRenderer) -> np.ndarray:
+        """The colour image (RGBA in the lit look: alpha is the light that is not direct sun)."""
+        self._show_own(self.colour_actors is None)
+        return r.render(self.scene, flags=self.flags)[0]
+
+    def instance_pass(self, r: pyrender.OffscreenRenderer) -> tuple[np.ndarray, np.ndarray]:
+        """(H, W) uint16 actor ids and float depth. Depth from this single-sample pass: the
+        multisampled pass's depth is that of sample 0, a third of a pixel off the pixel centre."""
+        self._show_own(True)
+        ids, depth = r.render(self.scene, flags=RenderFlags.SEG, seg_node_map=self.seg)
+        return ids[..., 0].astype(np.uint16) + 256 * ids[..., 1].astype(np.uint16), depth
+
+    def _show_own(self, on: bool) -> None:
+        for m in self.actor_meshes:
+            m.is_visible = on
+        if self.colour_actors is not None:
+            self.colour_actors.is_visible = not on
+
+
+def build_scene(world: World) -> BuiltScene:
+    """The pyrender scene of a world at t = 0 and what its passes need (BuiltScene)."""
     light = world.light
     rig = world.rig
     cam2_from_world = rig.cam2_from_world()
@@ -523,9 +617,13 @@ def build_scene(world: World) -> tuple[pyrender.Scene, dict, int, Casters]:
                        actor.pose, moving))
         lamps += [(p, actor.pose, _seg_code(actor.id)) for p in actor.parts
                   if lit and p.material.name in EMISSIVE]
-    meshes, actor_casters, reach = _actor_meshes(bodies, shader)
+    textured = shader.mode == "lit" and world.appearance.textures
+    meshes, merged, actor_casters, reach = _actor_meshes(
+        bodies, shader, factor_rng(world.seed, world.frame_index, "actor_textures") if textured else None)
     for actor, mesh in zip(world.actors, meshes):
         seg[scene.add(mesh, pose=actor.pose)] = _seg_code(actor.id)
+    if merged is not None:  # world frame; not in `seg`, so the instance pass never draws it
+        scene.add(merged)
     for part, pose, code in lamps:
         mat = pyrender.MetallicRoughnessMaterial(baseColorFactor=(0.0, 0.0, 0.0, 1.0),
                                                  emissiveFactor=EMISSIVE[part.material.name],
@@ -549,7 +647,7 @@ def build_scene(world: World) -> tuple[pyrender.Scene, dict, int, Casters]:
                                          innerConeAngle=0.15, outerConeAngle=0.45), pose=p)
     flags = {"pbr": RenderFlags.NONE, "thermal": RenderFlags.FLAT,
              "lit": RenderFlags.FLAT | RenderFlags.RGBA}[shader.mode]
-    return scene, seg, flags, Casters(casters, actor_casters, reach)
+    return BuiltScene(scene, seg, flags, Casters(casters, actor_casters, reach), meshes, merged)
 
 
 def _shade_tint(time: str) -> np.ndarray:
@@ -596,13 +694,10 @@ def darken(rgb: np.ndarray, alpha: np.ndarray, sun: np.ndarray, sky: np.ndarray,
 def render(world: World) -> RenderOutput:
     rig = world.rig
     r = renderer(rig.width, rig.height)
-    scene, seg, flags, casters = build_scene(world)
-    color, _ = r.render(scene, flags=flags)
-    # Depth from the single-sample pass: the multisampled pass's depth is that of sample 0, a
-    # third of a pixel off the pixel centre.
-    ids, depth = r.render(scene, flags=RenderFlags.SEG, seg_node_map=seg)
-    instance = ids[..., 0].astype(np.uint16) + 256 * ids[..., 1].astype(np.uint16)
-    lit = bool(flags & RenderFlags.RGBA)
-    rgb = shade(world, color, depth, instance, casters) if lit else color[..., :3]
+    built = build_scene(world)
+    color = built.colour_pass(r)
+    instance, depth = built.instance_pass(r)
+    lit = bool(built.flags & RenderFlags.RGBA)
+    rgb = shade(world, color, depth, instance, built.casters) if lit else color[..., :3]
     return RenderOutput(np.ascontiguousarray(rgb), depth.astype(np.float32), instance,
                         HEADROOM if lit else 1.0)

@@ -597,8 +597,38 @@ def _across_block(road: RoadLayout, lot: Lot, near: float, rng: np.random.Genera
     return q
 
 
-def _open_land(road: RoadLayout, lot: Lot, rng: np.random.Generator, out: _Meshes) -> None:
-    """A lawn or a meadow up to the buildings across the block, with park trees."""
+# Steel crash barriers (German "einfache Schutzplanke", RPS 2009 / EN 1317): a W-beam rail 0.31 m
+# deep, its top 0.75 m above the ground, on posts every 2 m behind it; they line arterial and
+# rural roads beside open land (embankments, ditches). The rail's two ridges stand 3 cm proud of
+# its groove, what a camera sees as two light bands and a dark one.
+RAIL_TOP, RAIL_DEPTH, RAIL_RIDGE, RAIL_PROUD = 0.75, 0.31, 0.10, 0.03
+POST_PITCH, POST_W, POST_D = 2.0, 0.10, 0.05
+
+
+def _guardrail(road: RoadLayout, side: int, s0: float, s1: float, out: _Meshes) -> None:
+    """A crash barrier along the back of the sidewalk over [s0, s1]."""
+    if s1 - s0 < 4.0:
+        return
+    ch, q = road.curb_height, 0.15
+    lo = RAIL_TOP - RAIL_DEPTH
+    posts = np.arange(s0 + POST_PITCH / 2, s1, POST_PITCH)
+    for a, b in _pieces(s0, s1):
+        ridge = _qbox(road, side, a, b, q, q + 0.08, ch + lo, RAIL_RIDGE)
+        if out.blocks(ridge):  # a piece in a keep-clear area is left out whole
+            continue
+        _add_solid(out, METAL, ridge)
+        out.add(METAL, _qbox(road, side, a, b, q + RAIL_PROUD, q + 0.08, ch + lo + RAIL_RIDGE,
+                             RAIL_DEPTH - 2 * RAIL_RIDGE))
+        out.add(METAL, _qbox(road, side, a, b, q, q + 0.08, ch + RAIL_TOP - RAIL_RIDGE, RAIL_RIDGE))
+        for s in posts[(posts >= a) & (posts < b)]:
+            out.add(METAL, _qbox(road, side, s - POST_W / 2, s + POST_W / 2, q + 0.08, q + 0.08 + POST_D,
+                                 ch, RAIL_TOP - 0.05))
+
+
+def _open_land(road: RoadLayout, lot: Lot, rng: np.random.Generator, out: _Meshes,
+               guardrail: float = 0.0) -> None:
+    """A lawn or a meadow up to the buildings across the block, with park trees; with
+    probability `guardrail` a crash barrier along the sidewalk (no draw at 0)."""
     side, ch = lot.side, road.curb_height
     far = _across_block(road, lot, 0.0, rng, out, gardens=False)
     lam = (lot.s1 - lot.s0) * far / PARK_M2_PER_TREE
@@ -607,6 +637,8 @@ def _open_land(road: RoadLayout, lot: Lot, rng: np.random.Generator, out: _Meshe
         x, y = road.xy(rng.uniform(lot.s0, lot.s1), outer + side * rng.uniform(2.0, far - 2.0))
         _tree(out, x, y, ch, rng.uniform(*TREE_HEIGHT), rng.uniform(*CROWN_RADIUS), CLEAR_FOOTWAY, 0.25)
     s0, s1 = max(lot.s0, road.s_min), min(lot.s1, road.s_max)
+    if guardrail > 0 and rng.uniform() < guardrail:
+        _guardrail(road, side, s0, s1, out)
     if rng.uniform() < 0.5 or s1 <= s0:  # a lawn: the ground laid by _frontage_ground
         return
     h, ss = ch + rng.uniform(*MEADOW_HEIGHT), road.samples(s0, s1)
@@ -615,7 +647,8 @@ def _open_land(road: RoadLayout, lot: Lot, rng: np.random.Generator, out: _Meshe
     out.add(FOLIAGE, _flip(face) if side < 0 else face)
 
 
-def _lot(road: RoadLayout, lot: Lot, setback: float, rng: np.random.Generator, out: _Meshes) -> None:
+def _lot(road: RoadLayout, lot: Lot, setback: float, rng: np.random.Generator, out: _Meshes,
+         guardrail: float = 0.0) -> None:
     """Everything standing on one lot (its ground is laid by _frontage_ground)."""
     side, s0, s1, ch = lot.side, lot.s0, lot.s1, road.curb_height
     if lot.kind == "row":
@@ -626,7 +659,7 @@ def _lot(road: RoadLayout, lot: Lot, setback: float, rng: np.random.Generator, o
         depth = _house_row(road, side, s0, s1, yard, rng, out, yard=True)
         _across_block(road, lot, yard + depth, rng, out)
     elif lot.kind == "open":
-        _open_land(road, lot, rng, out)
+        _open_land(road, lot, rng, out, guardrail)
     else:  # car park: planting strips with trees, a hedge or nothing along the sidewalk, a store
         n_strips = round((lot.depth - PLANTING) / (2 * STALL_L + AISLE + PLANTING)) + 1
         outer = _outer(road, side)
@@ -721,7 +754,7 @@ def _build_frontage(road: RoadLayout, plan: Frontage, clutter: dict, ground: Mat
     _markings(road, out)
     rng = np.random.default_rng([seed, 2])
     for lot in plan.lots:
-        _lot(road, lot, float(clutter["building_setback"]), rng, out)
+        _lot(road, lot, float(clutter["building_setback"]), rng, out, float(clutter.get("guardrail", 0.0)))
     rng = np.random.default_rng([seed, 3])
     for side in (-1, 1):
         _street_trees(road, side, clutter["trees_per_100m"], rng, out)

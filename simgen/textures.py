@@ -196,6 +196,89 @@ def _roof(rng: np.random.Generator) -> np.ndarray:
     return np.repeat(m[..., None], 3, axis=2)
 
 
+# Vehicle glass and number plates (simgen.render maps them per part, not in metres of the world).
+# A pane is a mirror over a see-through cabin: from 10-20 m the camera sees headrests and seat
+# backs against the bright scene beyond the far windows, and the sky mirrored at the top; a pane
+# of one flat colour, as the meshes alone give, is what no photographed car shows. A tile spans
+# GLASS_TILE_M of glass along the car and the pane's whole height (row 0 at its top).
+GLASS_TILE_M = 2.4
+# Seats: head restraints about 0.25-0.28 m wide and 0.2 m tall (ECE R17 asks at least 0.17 m
+# wide), their tops about 0.75 m above the seat; two a row, 0.5-0.6 m apart (the seats' centres).
+HEADREST_W, HEADREST_PITCH = 0.26, 0.55
+# EU plates (DIN 74069): 520 x 110 mm, a 40 mm blue band with the country code on the left,
+# characters 75 mm tall and about 47 mm wide in a black 1 mm rim... (a judgement: 8 characters).
+PLATES_PER_TILE, PLATE_CHARS = 4, 8
+
+
+def _glass(rng: np.random.Generator) -> np.ndarray:
+    """Top fifth: the mirrored sky, streaked; the middle: the bright scene seen through the far
+    windows, with the seats dark against it (a back 0.45 m wide rising from the trim, a head
+    restraint above it); the bottom third: trim and seat cushions, dark. Reflections of what
+    stands around (low-frequency streaks) over all of it."""
+    v = (np.arange(SIZE) + 0.5)[:, None] / SIZE  # 0 at the pane's top
+    u_m = (np.arange(SIZE) + 0.5)[None, :] / SIZE * GLASS_TILE_M
+    m = np.where(v < 0.2, 1.15, np.where(v < 0.65, 1.4, 0.6)) * np.exp(0.25 * _fractal(rng, 2.2, aspect=0.25))
+    pitch = GLASS_TILE_M / round(GLASS_TILE_M / HEADREST_PITCH)  # whole seats per tile: no seam
+    centre = np.abs((u_m % pitch) - pitch / 2)
+    corner = 0.06  # rounded corners, m
+    dx = np.maximum(centre - (HEADREST_W / 2 - corner), 0.0)
+    dy = np.maximum(np.abs(v - 0.36) * 0.9 - (0.08 * 0.9 - corner), 0.0)  # the pane about 0.9 m tall
+    seat = (np.hypot(dx, dy) < corner) | ((centre < 0.22) & (v > 0.5))
+    m = np.where(seat, 0.45 * (1.0 + 0.05 * _grain(rng, 1.5)), m)
+    return np.repeat(m[..., None], 3, axis=2) * np.array([0.97, 1.0, 1.04])
+
+
+# Car paint mirrors what stands around it: trees, façades and sky give light and dark streaks
+# along a panel (about +-15 % of a panel's radiance, judged from photographs; no survey). A tile
+# spans PAINT_TILE_M along and up the car.
+PAINT_TILE_M = (4.0, 1.5)
+
+
+def _paint(rng: np.random.Generator) -> np.ndarray:
+    """Mirrored surroundings on a clear coat: soft streaks that run along the panel."""
+    m = np.exp(0.15 * _fractal(rng, 2.0, aspect=0.2))
+    return np.repeat(m[..., None], 3, axis=2)
+
+
+def _segment_glyph(rng: np.random.Generator, rows: int, cols: int) -> np.ndarray:
+    """A character-like mark: 4-6 of the seven segments of a display digit, strokes 12 % of the
+    character's height thick (a letter or digit at the distances where plates are read by eye)."""
+    g = np.zeros((rows, cols), bool)
+    t = max(1, round(0.12 * rows))
+    mid = rows // 2
+    strokes = [(slice(0, t), slice(0, cols)), (slice(mid - t // 2, mid + t - t // 2), slice(0, cols)),
+               (slice(rows - t, rows), slice(0, cols)), (slice(0, mid), slice(0, t)),
+               (slice(0, mid), slice(cols - t, cols)), (slice(mid, rows), slice(0, t)),
+               (slice(mid, rows), slice(cols - t, cols))]
+    for i in rng.choice(7, size=int(rng.integers(4, 7)), replace=False):
+        g[strokes[i]] = True
+    return g
+
+
+def _plates(rng: np.random.Generator) -> np.ndarray:
+    """PLATES_PER_TILE plates, one per band of rows: white sheeting, a thin black rim, the blue
+    EU band on the left, PLATE_CHARS black characters (simgen.render picks one band a car)."""
+    band = SIZE // PLATES_PER_TILE
+    m = np.ones((SIZE, SIZE, 3)) * (1.0 + 0.03 * _grain(rng))[..., None]
+    px_u, px_v = SIZE / 0.52, band / 0.11  # texels per metre across and down a plate
+    for k in range(PLATES_PER_TILE):
+        r0 = k * band
+        rim = max(1, round(0.004 * px_v))
+        m[r0:r0 + rim], m[r0 + band - rim:r0 + band] = 0.05, 0.05
+        m[r0:r0 + band, :rim], m[r0:r0 + band, SIZE - rim:] = 0.05, 0.05
+        m[r0 + rim:r0 + band - rim, rim:round(0.04 * px_u)] = (0.06, 0.13, 0.5)
+        rows, cols = round(0.075 * px_v), round(0.040 * px_u)
+        top = r0 + (band - rows) // 2
+        x = round(0.055 * px_u)
+        step = (SIZE - round(0.012 * px_u) - x) / PLATE_CHARS
+        for i in range(PLATE_CHARS):
+            if i == 2 and rng.uniform() < 0.7:  # the gap between district and identifier
+                continue
+            c0 = round(x + i * step)
+            m[top:top + rows, c0:c0 + cols][_segment_glyph(rng, rows, cols)] = 0.05
+    return m
+
+
 _MAKERS = {"asphalt": _asphalt, "marking": _marking, "paving": _paving, "concrete": _concrete,
            "grass": _grass, "soil": _concrete, "sand": _concrete, "foliage": _foliage, "bark": _bark,
            "planks": _planks, "metal": _metal, "plaster": _plaster, "brick": _brick, "roof": _roof}
@@ -206,14 +289,24 @@ OF_MATERIAL = {"asphalt": "asphalt", "marking": "marking", "sidewalk": "paving",
                "bark": "bark", "fence": "planks", "pole": "metal"}
 
 
+# Actors' textures, seeded after the scenery's (adding one leaves every other tile as it was).
+ACTOR_MAKERS = {"glass": _glass, "paint": _paint, "plate": _plates}
+# Which texture an actor's part wears, by Material.name (simgen.render).
+OF_ACTOR_MATERIAL = {"glass": "glass", "paint": "paint", "plate": "plate"}
+
+
 @cache
 def tile(kind: str, variant: int) -> np.ndarray:
     """(SIZE, SIZE, 3) uint8 multipliers / MAX_GAIN of one texture variant, normalised to a mean
     multiplier of 1 per channel."""
-    if kind not in _MAKERS:
-        raise KeyError(f"no texture kind {kind!r} (known: {sorted(_MAKERS)})")
-    rng = np.random.default_rng([sorted(_MAKERS).index(kind), int(variant), 7919])
-    m = np.clip(_MAKERS[kind](rng), 0.0, None)
+    if kind in _MAKERS:
+        index, make = sorted(_MAKERS).index(kind), _MAKERS[kind]
+    elif kind in ACTOR_MAKERS:
+        index, make = len(_MAKERS) + sorted(ACTOR_MAKERS).index(kind), ACTOR_MAKERS[kind]
+    else:
+        raise KeyError(f"no texture kind {kind!r} (known: {sorted(_MAKERS) + sorted(ACTOR_MAKERS)})")
+    rng = np.random.default_rng([index, int(variant), 7919])
+    m = np.clip(make(rng), 0.0, None)
     for _ in range(4):  # mean one per channel, after the clip at MAX_GAIN
         m = np.clip(m / m.reshape(-1, 3).mean(axis=0), 0.0, MAX_GAIN)
     return np.clip(np.round(m / MAX_GAIN * 255.0), 0, 255).astype(np.uint8)

@@ -14,6 +14,10 @@ from simgen.sample import _footprint, sample_world
 from simgen.scenery import (
     FRONT_YARD,
     LAND_DEPTH,
+    POST_PITCH,
+    POST_W,
+    RAIL_DEPTH,
+    RAIL_TOP,
     STALL_W,
     _outer,
     build_scenery,
@@ -146,3 +150,31 @@ def test_no_frontage_keeps_the_first_street_model():
 def test_frontage_spec_errors_name_the_key(frontage, words):
     with pytest.raises(SpecError, match=rf"clutter\.frontage.*{words}"):
         spec_from_dict({"name": "x", "clutter": {"frontage": frontage}})
+
+
+def test_crash_barriers_stand_along_open_land_at_their_height():
+    """clutter.guardrail 1: every open lot gets a W-beam rail whose top stands RAIL_TOP above the
+    sidewalk, 0.15-0.23 m behind it, on posts POST_PITCH apart; at 0 no metal stands there."""
+    rails = []
+    for share in (1.0, 0.0):
+        world = sample_world(_spec({"open": 1}, guardrail=share, pole_spacing=0), 2, 0)
+        road = RoadLayout(**world.scenery["road"])
+        ch = road.curb_height
+        metal = np.concatenate([np.asarray(p.mesh.vertices) for p in world.static
+                                if p.material.name == "pole"] or [np.zeros((0, 3))])
+        outer = _outer(road, 1)
+        near = metal[(metal[:, 1] > outer + 0.1) & (metal[:, 1] < outer + 0.4)]  # the left side
+        rails.append(near)
+    near, none = rails
+    assert len(none) == 0
+    assert near[:, 2].max() == pytest.approx(road.curb_height + RAIL_TOP, abs=1e-9)
+    face = near[near[:, 1] < outer + 0.15 + 1e-9]
+    assert len(face) and np.allclose(face[:, 1], outer + 0.15)  # the rail's face towards the road
+    assert face[:, 2].min() == pytest.approx(ch + RAIL_TOP - RAIL_DEPTH, abs=1e-9)
+    feet = near[np.isclose(near[:, 2], ch)]  # only the posts reach down to the ground
+    xs = np.unique(np.round(feet[:, 0], 6))  # each post's two ends along the road
+    assert len(xs) > 20 and len(xs) % 2 == 0
+    np.testing.assert_allclose(xs[1::2] - xs[::2], POST_W, atol=1e-6)
+    gaps = np.diff((xs[::2] + xs[1::2]) / 2)
+    # POST_PITCH apart along each lot (a new lot starts its own row of posts)
+    assert np.mean(np.isclose(gaps, POST_PITCH, atol=1e-6)) > 0.9, gaps[~np.isclose(gaps, POST_PITCH)]
