@@ -3,11 +3,14 @@
 One OffscreenRenderer per worker process, reused across frames (EGL; Mesa's llvmpipe on a
 machine without a GPU). Two passes per frame: a lit colour pass (4x MSAA) and a flat
 segmentation pass without multisampling, sampled at pixel centres, whose 8-bit colours carry the
-actor id exactly (id = R + 256 G) and whose depth buffer gives the depth image. Each actor is one draw call (its parts merged, colours per face);
-the static world is one draw call per texture.
+actor id exactly (id = R + 256 G) and whose depth buffer gives the depth image. In the
+segmentation pass each actor is one draw call (its parts merged); in the lit colour pass all
+actors together are one draw call per texture they wear (glass, plates, paint) and one for the
+rest (BuiltScene), as the static world is one per texture.
 
 The lit looks (day, dusk) are shaded per face on the CPU and drawn unlit (see _Shader); on top
 of that the surfaces wear procedural textures (simgen.textures) mapped from world coordinates,
+and on the actors' glass, plates and paint mapped per part (_texture_coordinates),
 the sky is a dome with a gradient and clouds, car paint and glass mirror the sky with Fresnel's
 reflectance, and the sun casts shadows (simgen.shadows) from the same meshes the LiDAR sees;
 actors also hide part of the sky from the ground under and beside them (skylight occlusion).

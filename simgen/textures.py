@@ -1,4 +1,5 @@
-"""Procedural surface detail for the camera: asphalt, paving, façades, grass, foliage, bark, wood.
+"""Procedural surface detail for the camera: asphalt, paving, façades, grass, foliage, bark, wood,
+and on vehicles glass, number plates and paint.
 
 Each texture is a tile of multipliers on a material's flat colour (mean about 1, so a surface
 keeps the albedo its material gives it, and the LiDAR, which reads the material, agrees with the
@@ -205,8 +206,8 @@ GLASS_TILE_M = 2.4
 # Seats: head restraints about 0.25-0.28 m wide and 0.2 m tall (ECE R17 asks at least 0.17 m
 # wide), their tops about 0.75 m above the seat; two a row, 0.5-0.6 m apart (the seats' centres).
 HEADREST_W, HEADREST_PITCH = 0.26, 0.55
-# EU plates (DIN 74069): 520 x 110 mm, a 40 mm blue band with the country code on the left,
-# characters 75 mm tall and about 47 mm wide in a black 1 mm rim... (a judgement: 8 characters).
+# EU plates (DIN 74069): 520 x 110 mm, a blue band 40 mm wide on the left, black characters 75 mm
+# tall (drawn 40 mm wide) inside a thin black rim (drawn 4 mm); up to 8 characters (a judgement).
 PLATES_PER_TILE, PLATE_CHARS = 4, 8
 
 
