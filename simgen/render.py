@@ -314,10 +314,10 @@ def _thermal(part: Part, moving: bool) -> tuple[float, float, float]:
 
 def _actor_meshes(bodies: list[tuple[list[Part], np.ndarray, bool]], shader: _Shader,
                   rng: np.random.Generator | None = None
-                  ) -> tuple[list[pyrender.Mesh], pyrender.Mesh | None, Occluders, Reach]:
+                  ) -> tuple[list[pyrender.Mesh], pyrender.Node | None, Occluders, Reach]:
     """One flat-shaded mesh per actor (parts in the actor frame), all actors shaded in one
     vectorised pass in the world frame; with `rng` (the lit look with textures) also all actors
-    in one world-frame mesh for the colour pass, glass, paint and plates wearing their textures
+    in one node for the colour pass, glass, paint and plates wearing their textures
     (_texture_coordinates; one primitive per texture, where one per actor and texture would cost
     pyrender a draw call each); their triangles (world frame) as shadow casters; and each body's
     box, where it can hide the sky."""
@@ -356,13 +356,19 @@ def _actor_meshes(bodies: list[tuple[list[Part], np.ndarray, bool]], shader: _Sh
     gain = np.array([textures.MAX_GAIN] * 3 + [1.0])
     worn = _texture_coordinates(parts, np.concatenate([t for t, _ in geo]), np.concatenate([n for _, n in geo]),
                                 shift, plate)
+    # The merged mesh sits at the actors' centroid, not at the static world's origin: pyrender
+    # draws the nodes farthest first, and two nodes at one distance in the order of a set (of
+    # objects hashed by address), which would decide run by run who wins a depth tie (a tyre on
+    # the road).
+    origin = world_tris.reshape(-1, 3).mean(axis=0)
+    local = world_tris - origin
     for kind, (idx, uv) in worn.items():
-        prims.append(_primitive(world_tris[idx], None, rgba[idx] * gain, _textured(kind, 0), uv))
+        prims.append(_primitive(local[idx], None, rgba[idx] * gain, _textured(kind, 0), uv))
         plain[idx] = False
-    prims.append(_primitive(world_tris[plain], None, rgba[plain], _PLAIN))
+    prims.append(_primitive(local[plain], None, rgba[plain], _PLAIN))
+    merged = pyrender.Node(mesh=pyrender.Mesh(prims), translation=origin)
     # The instance pass sets one colour per actor: its own meshes need no colours.
-    return ([pyrender.Mesh([_primitive(t, None, None, _PLAIN)]) for t, _ in geo], pyrender.Mesh(prims),
-            casters, reach)
+    return [pyrender.Mesh([_primitive(t, None, None, _PLAIN)]) for t, _ in geo], merged, casters, reach
 
 
 def _texture_coordinates(parts: list[Part], tris: np.ndarray, normals: np.ndarray, shift: np.ndarray,
@@ -625,8 +631,8 @@ def build_scene(world: World) -> BuiltScene:
         bodies, shader, factor_rng(world.seed, world.frame_index, "actor_textures") if textured else None)
     for actor, mesh in zip(world.actors, meshes):
         seg[scene.add(mesh, pose=actor.pose)] = _seg_code(actor.id)
-    if merged is not None:  # world frame; not in `seg`, so the instance pass never draws it
-        scene.add(merged)
+    if merged is not None:  # not in `seg`, so the instance pass never draws it
+        scene.add_node(merged)
     for part, pose, code in lamps:
         mat = pyrender.MetallicRoughnessMaterial(baseColorFactor=(0.0, 0.0, 0.0, 1.0),
                                                  emissiveFactor=EMISSIVE[part.material.name],
@@ -650,7 +656,8 @@ def build_scene(world: World) -> BuiltScene:
                                          innerConeAngle=0.15, outerConeAngle=0.45), pose=p)
     flags = {"pbr": RenderFlags.NONE, "thermal": RenderFlags.FLAT,
              "lit": RenderFlags.FLAT | RenderFlags.RGBA}[shader.mode]
-    return BuiltScene(scene, seg, flags, Casters(casters, actor_casters, reach), meshes, merged)
+    return BuiltScene(scene, seg, flags, Casters(casters, actor_casters, reach), meshes,
+                      None if merged is None else merged.mesh)
 
 
 def _shade_tint(time: str) -> np.ndarray:
