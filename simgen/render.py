@@ -330,13 +330,14 @@ def _actor_meshes(bodies: list[tuple[list[Part], np.ndarray, bool]], shader: _Sh
     geo = _split_faceted(shared)
     world_tris = np.concatenate([t @ pose[:3, :3].T + pose[:3, 3] for (t, _), (_, pose, _) in zip(geo, bodies)])
     world_n = np.concatenate([n @ pose[:3, :3].T for (_, n), (_, pose, _) in zip(geo, bodies)])
-    ends = np.cumsum([len(t) for t, _ in geo])[:-1]
+    counts = [len(t) for t, _ in geo]  # faces per actor
+    ends = np.cumsum(counts)[:-1]
     parts = [p for b, _, _ in bodies for p in b]
+    own_tris, own_n = np.concatenate([t for t, _ in geo]), np.concatenate([n for _, n in geo])  # actor frames
     if shader.mode == "thermal":  # warm when moving: per actor
         rgba = np.concatenate([shader.colors(b, None, None, moving) for b, _, moving in bodies])
     elif shader.mode == "lit":
-        bent = _bent_normals([len(p.mesh.faces) for p in parts], np.concatenate([t for t, _ in geo]),
-                             np.concatenate([n for _, n in geo]))
+        bent = _bent_normals([len(p.mesh.faces) for p in parts], own_tris, own_n)
         bent = np.concatenate([b @ pose[:3, :3].T
                                for b, (_, pose, _) in zip(np.split(bent, ends), bodies)])
         rgba = shader.colors(parts, world_tris, world_n, False, corner_normals=bent)
@@ -349,13 +350,11 @@ def _actor_meshes(bodies: list[tuple[list[Part], np.ndarray, bool]], shader: _Sh
         return ([pyrender.Mesh([_primitive(t, shader.gl_normals(n), c, _PLAIN)])
                  for (t, n), c in zip(geo, np.split(rgba, ends))], None, casters, reach)
     # Each actor draws a shift of its glass and paint and a plate of the plates' tile.
-    per_face = np.diff(np.r_[0, ends, len(world_tris)])
-    shift = np.repeat(rng.uniform(0.0, 1.0, len(bodies)), per_face)
-    plate = np.repeat(rng.integers(textures.PLATES_PER_TILE, size=len(bodies)), per_face)
+    shift = np.repeat(rng.uniform(0.0, 1.0, len(bodies)), counts)
+    plate = np.repeat(rng.integers(textures.PLATES_PER_TILE, size=len(bodies)), counts)
     prims, plain = [], np.ones(len(world_tris), bool)
     gain = np.array([textures.MAX_GAIN] * 3 + [1.0])
-    worn = _texture_coordinates(parts, np.concatenate([t for t, _ in geo]), np.concatenate([n for _, n in geo]),
-                                shift, plate)
+    worn = _texture_coordinates(parts, own_tris, own_n, shift, plate)
     # The merged mesh sits at the actors' centroid, not at the static world's origin: pyrender
     # draws the nodes farthest first, and two nodes at one distance in the order of a set (of
     # objects hashed by address), which would decide run by run who wins a depth tie (a tyre on

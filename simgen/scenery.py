@@ -601,28 +601,30 @@ def _across_block(road: RoadLayout, lot: Lot, near: float, rng: np.random.Genera
 # deep, its top 0.75 m above the ground, on posts every 2 m behind it; they line arterial and
 # rural roads beside open land (embankments, ditches). The rail's two ridges stand 3 cm proud of
 # its groove, what a camera sees as two light bands and a dark one.
+# Across the road the profile is 83 mm deep (drawn 0.08 m), 0.15 m behind the sidewalk's edge.
 RAIL_TOP, RAIL_DEPTH, RAIL_RIDGE, RAIL_PROUD = 0.75, 0.31, 0.10, 0.03
-POST_PITCH, POST_W, POST_D = 2.0, 0.10, 0.05
+RAIL_BACK, RAIL_THICK = 0.15, 0.08
+POST_PITCH, POST_W, POST_D, POST_BELOW_TOP = 2.0, 0.10, 0.05, 0.05
 
 
 def _guardrail(road: RoadLayout, side: int, s0: float, s1: float, out: _Meshes) -> None:
     """A crash barrier along the back of the sidewalk over [s0, s1]."""
     if s1 - s0 < 4.0:
         return
-    ch, q = road.curb_height, 0.15
+    ch, q, back = road.curb_height, RAIL_BACK, RAIL_BACK + RAIL_THICK
     lo = RAIL_TOP - RAIL_DEPTH
     posts = np.arange(s0 + POST_PITCH / 2, s1, POST_PITCH)
     for a, b in _pieces(s0, s1):
-        ridge = _qbox(road, side, a, b, q, q + 0.08, ch + lo, RAIL_RIDGE)
+        ridge = _qbox(road, side, a, b, q, back, ch + lo, RAIL_RIDGE)
         if out.blocks(ridge):  # a piece in a keep-clear area is left out whole
             continue
         _add_solid(out, METAL, ridge)
-        out.add(METAL, _qbox(road, side, a, b, q + RAIL_PROUD, q + 0.08, ch + lo + RAIL_RIDGE,
+        out.add(METAL, _qbox(road, side, a, b, q + RAIL_PROUD, back, ch + lo + RAIL_RIDGE,
                              RAIL_DEPTH - 2 * RAIL_RIDGE))
-        out.add(METAL, _qbox(road, side, a, b, q, q + 0.08, ch + RAIL_TOP - RAIL_RIDGE, RAIL_RIDGE))
+        out.add(METAL, _qbox(road, side, a, b, q, back, ch + RAIL_TOP - RAIL_RIDGE, RAIL_RIDGE))
         for s in posts[(posts >= a) & (posts < b)]:
-            out.add(METAL, _qbox(road, side, s - POST_W / 2, s + POST_W / 2, q + 0.08, q + 0.08 + POST_D,
-                                 ch, RAIL_TOP - 0.05))
+            out.add(METAL, _qbox(road, side, s - POST_W / 2, s + POST_W / 2, back, back + POST_D, ch,
+                                 RAIL_TOP - POST_BELOW_TOP))
 
 
 def _open_land(road: RoadLayout, lot: Lot, rng: np.random.Generator, out: _Meshes,
