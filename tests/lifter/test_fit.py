@@ -6,7 +6,7 @@ import pytest
 
 from kitti.boxes import box_corners, wrap_angle
 from kitti.iou import iou_2d
-from lifter.fit import lift_fit
+from lifter.fit import IMAGE_DEPTH_K, lift_fit
 from lifter.ground import fit_ground_plane
 from lifter.mono import solve_from_alpha
 from lifter.points import frame_points
@@ -84,13 +84,13 @@ def test_returns_only_behind_the_face_take_the_depth_from_the_image(monkeypatch)
     assert roof.sum() == 6
     fr.velodyne = fr.velodyne[~on_car | roof]
     near_face = {}
-    for k in (1e9, 0.15):  # the image check off, then as shipped
+    for k in (1e9, IMAGE_DEPTH_K):  # the image check off, then as shipped
         monkeypatch.setattr("lifter.fit.IMAGE_DEPTH_K", k)
         out = _lift(fr, 0.0, np.random.default_rng(0), plane=PLANE)[0]
         near_face[k] = box_corners(np.array([[*out.location, *out.dims, out.rotation_y]]))[0][:, 2].min()
     truth = 12.0 - 4.2 / 2
     assert near_face[1e9] - truth > 1.0
-    assert abs(near_face[0.15] - truth) < 0.1
+    assert abs(near_face[IMAGE_DEPTH_K] - truth) < 0.1
 
 
 def test_ground_plane_from_the_scan():
@@ -108,7 +108,8 @@ def test_no_returns_falls_back_to_image_only_on_the_road():
         sol = solve_from_alpha(np.array([o.h, o.w, o.l]), o.alpha, o.bbox, fr.calib, IMAGE_SIZE, PLANE)
         np.testing.assert_allclose(lf.location, sol.location)
         np.testing.assert_allclose(lf.location, b[:3], atol=1e-3)
-        assert lf.quality == 0.2
+        d = np.hypot(b[0], b[2])  # the image's depth: trusted less with distance, as mono's
+        assert lf.quality == pytest.approx(0.2 / (1.0 + d * d / (720.0 * 1.65)), rel=1e-4)
 
 
 @pytest.mark.parametrize("box7", [[3.0, 1.65, 20.0, 1.5, 1.7, 4.2, 0.3],
