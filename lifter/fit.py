@@ -40,6 +40,7 @@ Step 2 is `clusters.object_returns`, steps 4-5 are `placement`'s kernels.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numba
 import numpy as np
@@ -84,7 +85,7 @@ IMAGE_DEPTH_K = 1.0    # returns more than this many image-depth sigmas behind t
                        # 240 generated tuning frames (seed 4100) with 16 uniform rings the cars'
                        # returns put them within 0.4 m of the truth more often than the image
                        # did (70-77 % against 44-46 %), and 0.15 (before) moved cars the returns
-                       # had right: 67.6 -> 69.6 moderate AP there, 0.5-1.5 all alike
+                       # had right: 67.6 -> 69.7 moderate AP there, 0.5-1.5 all alike
 SIGMA_YAW_PRIOR = np.deg2rad(20.0)  # the network's orientation, against the 2D box's evidence
 SAME_YAW = np.deg2rad(1.0)  # an L-shape this close to the network's yaw is taken as agreeing
 COST_SCALE = 8.0       # the winning yaw's cost (squared normalised misfits: yaw prior, rectangle,
@@ -174,6 +175,18 @@ class _View:
     @property
     def P(self) -> np.ndarray:
         return self.calib.P(self.cam)
+
+
+class _Placed(NamedTuple):
+    """One yaw hypothesis placed: its yaw, bottom centre, size, the faces its returns pin, its
+    cost, and whether its depth is the image's (`_image_depth_check` moved it)."""
+
+    ry: float
+    T: np.ndarray
+    dims: np.ndarray
+    pinned: int
+    cost: float
+    from_image: bool
 
 
 @dataclass
@@ -365,8 +378,7 @@ def _fit_box(box: Box2D, prior: Prior, cand: np.ndarray, height: np.ndarray, pts
     c = obj.centroid
     ry_prior = float(wrap_angle(prior.alpha + np.arctan2(c[0], c[1])))
     small = box.type in SMALL_CLASSES
-    ry, T, dims, pinned, cost, from_image = _best_yaw(obj, prior, ry_prior, small, box, view,
-                                                      plane)
+    ry, T, dims, pinned, cost, from_image = _best_yaw(obj, prior, ry_prior, small, box, view, plane)
     dims = dims.copy()
     dims[0] = height_from_box(T, dims, ry, box.bbox, view.outline, view.image_size[1], view.P)
     h, w, l = dims
@@ -384,14 +396,13 @@ def _fit_box(box: Box2D, prior: Prior, cand: np.ndarray, height: np.ndarray, pts
 
 
 def _best_yaw(obj: _Returns, prior: Prior, ry_prior: float, small: bool, box: Box2D, view: _View,
-              plane: np.ndarray) -> tuple[float, np.ndarray, np.ndarray, int, float, bool]:
+              plane: np.ndarray) -> _Placed:
     """Step 3 and the yaw hypotheses: the L-shape's axes (or the network's yaw) fix the axes and
     the network picks which one is the length; it is sometimes wrong by ~90 degrees, so the other
     axis is tried too, and so is the network's own yaw. Each costs its distance from the
     network's yaw (SIGMA_YAW_PRIOR), how much worse a rectangle fits the returns than at the
     L-shape's (SIGMA_RECT), its box's misfit to the 2D box's sides and its length's to the prior.
-    Returns the yaw, the bottom centre, the size, the pinned count, the cost of the winner and
-    whether its depth is the image's (`_image_depth_check`)."""
+    Returns the winner."""
     # the outline is the body's: windows and roof are set in from it (a real car's glasshouse
     # narrows above the belt line), so the returns below it give the L-shape where enough do
     body = obj.xz[obj.height < BELT_LINE * prior.dims[0]]
@@ -405,40 +416,41 @@ def _best_yaw(obj: _Returns, prior: Prior, ry_prior: float, small: bool, box: Bo
                                                                 view, plane)
         cost += fit_cost
         if cost < best_cost:
-            best_fit = (ry_h, T_h, dims_h, pinned_h, cost, moved_h)
+            best_fit = _Placed(ry_h, T_h, dims_h, pinned_h, cost, moved_h)
             best_cost, best_box_cost = cost, fit_cost
     if small or len(body) < MIN_LSHAPE or best_box_cost <= 1.0:
         return best_fit
     return _refine_yaw(best_fit, best_box_cost, body, obj, prior, ry_prior, box, view, plane)
 
 
-def _refine_yaw(best_fit: tuple, box_cost: float, body: np.ndarray, obj: _Returns, prior: Prior,
-                ry_prior: float, box: Box2D, view: _View, plane: np.ndarray) -> tuple:
+def _refine_yaw(best_fit: _Placed, box_cost: float, body: np.ndarray, obj: _Returns,
+                prior: Prior, ry_prior: float, box: Box2D, view: _View,
+                plane: np.ndarray) -> _Placed:
     """Step 3b: the yaws near the winner's (whose box costs `box_cost` against the 2D box and
     the length prior), each costing its distance from the network's yaw, how much worse a
     rectangle fits the returns than the best-fitting of them, and its box's misfit; the cheapest
     wins, the winner included. Yaws whose first two terms alone cost more than the best so far
     are not placed."""
     pts = body[:: -(-len(body) // MAX_LSHAPE_POINTS)]
-    ry0 = best_fit[0]
+    ry0 = best_fit.ry
     n = int(round(SIGMA_YAW_PRIOR / REFINE_STEP))
     yaws = np.array([ry0] + [float(ry0 + k * REFINE_STEP) for k in range(-n, n + 1) if k])
     rms = _rect_rms_each(pts, yaws)
     rms_min = float(rms.min())
     pre = _yaw_pre(yaws, rms, ry_prior, rms_min)
-    best = [(ry0, *best_fit[1:4], float(pre[0]) + box_cost, best_fit[5])]
+    best = [best_fit._replace(cost=float(pre[0]) + box_cost)]
 
     def tried(y: float, c: float) -> None:
-        if c >= best[0][4]:  # its misfit to the 2D box could only add to that
+        if c >= best[0].cost:  # its misfit to the 2D box could only add to that
             return
         T, dims, pinned, fit_cost, moved = _box_for_yaw(y, obj, prior, False, box, view, plane)
-        if c + fit_cost < best[0][4]:
-            best[0] = (wrap_one(y), T, dims, pinned, c + fit_cost, moved)
+        if c + fit_cost < best[0].cost:
+            best[0] = _Placed(wrap_one(y), T, dims, pinned, c + fit_cost, moved)
 
     for k in sorted(range(1, len(yaws)), key=lambda k: pre[k]):
         tried(float(yaws[k]), float(pre[k]))
     for step in (REFINE_STEP / 2, REFINE_STEP / 4):  # halve the step twice around the best
-        y1 = best[0][0]
+        y1 = best[0].ry
         ys = np.array([y1 - step, y1 + step])
         costs = _yaw_pre(ys, _rect_rms_each(pts, ys), ry_prior, rms_min)
         for y, c in zip(ys.tolist(), costs.tolist()):
