@@ -155,6 +155,13 @@ def _depth_sigma(d: float) -> float:
     return 0.5 + 0.05 * d + 2.0 * _depth_per_px(d)
 
 
+def _image_depth_trust(location: np.ndarray) -> float:
+    """How far to trust a depth taken from the road under a 2D box's bottom edge, as `mono`'s
+    is (`lifter.mono.mono_quality`): 1 / (1 + the metres of depth one pixel of that edge is worth
+    at the box's distance)."""
+    return 1.0 / (1.0 + _depth_per_px(float(np.hypot(location[0], location[2]))))
+
+
 def _image_depth_sigma(d: float) -> float:
     """Depth error of the ground contact under a 2D box: 1.5 px of the bottom edge plus 2 % for
     the size and orientation behind the contact."""
@@ -206,9 +213,8 @@ class _Returns:
 def _fallback(box: Box2D, prior: Prior, view: _View, plane: np.ndarray) -> Lifted:
     sol = solve_from_alpha(prior.dims, prior.alpha, box.bbox, view.calib, view.image_size, plane,
                            view.cam, cut_ok=True, contact=contact_of(box.type, view.outline))
-    d = float(np.hypot(sol.location[0], sol.location[2]))
     return Lifted(sol.location, sol.rotation_y, np.asarray(prior.dims, dtype=float),
-                  quality=0.2 / (1.0 + _depth_per_px(d)))
+                  quality=0.2 * _image_depth_trust(sol.location))
 
 
 def _box_for_yaw(ry: float, obj: _Returns, prior: Prior, small: bool, box: Box2D, view: _View,
@@ -221,6 +227,7 @@ def _box_for_yaw(ry: float, obj: _Returns, prior: Prior, small: bool, box: Box2D
     T, dims, pinned, misfit, length_cost = _size_and_place(
         obj.xz, obj.u, obj.height, h, w, l, ry, small, box.bbox, view.sensor_xz, obj.centroid,
         view.P, view.image_size[0], plane)
+    moved = None
     if (not small and obj.height.min() > LOW_RETURNS * dims[0]
             and box.bbox[3] < view.image_size[1] - 2.0):
         moved = _image_depth_check(T, dims, ry, box, view, plane)  # may move it along its ray
@@ -228,8 +235,7 @@ def _box_for_yaw(ry: float, obj: _Returns, prior: Prior, small: bool, box: Box2D
             T = moved
             misfit = side_misfit(np.array([[*T, *dims, ry]]), view.P, box.bbox,
                                  view.image_size[0])[0]
-            return T, dims, pinned, misfit / SIGMA_SIDE_PX ** 2 + length_cost, True
-    return T, dims, pinned, misfit / SIGMA_SIDE_PX ** 2 + length_cost, False
+    return T, dims, pinned, misfit / SIGMA_SIDE_PX ** 2 + length_cost, moved is not None
 
 
 @numba.njit(cache=True, nogil=True)
@@ -390,8 +396,8 @@ def _fit_box(box: Box2D, prior: Prior, cand: np.ndarray, height: np.ndarray, pts
     # needed its yaw, length or 2D sides far from what the evidence says less so
     quality = ((0.5 + 0.5 * min(1.0, len(obj.xz) / 30)) * (0.6 + 0.2 * pinned)
                / (1.0 + cost / COST_SCALE))
-    if from_image:  # its depth is the road's under the 2D box: trusted as `mono`'s is
-        quality /= 1.0 + _depth_per_px(float(np.hypot(T[0], T[2])))
+    if from_image:
+        quality *= _image_depth_trust(T)
     return Lifted(T, ry, dims, quality=quality), claimed
 
 
