@@ -26,13 +26,15 @@ under CLAIM_MIN_SCORE after the others):
 5. translation (x, z) by weighted least squares: the faces the returns confirm must touch the
    extreme returns, the box's outline must meet the 2D box's left and right sides (across the
    camera ray only: a 2D side fixes a bearing, not a depth), and the bottom sits on the road
-   plane; two passes (the corner that touches each side may change); (5b) where the 2D box is the
-   projection of the 3D box (KITTI's labels), its top edge then fixes the height exactly;
+   plane; two passes (the corner that touches each side may change). A vehicle's face whose
+   returns all lie above its bumpers is its bonnet's or glasshouse's (a sparse scan's one ring
+   over a far car): the box's face lies nearer by the outline's set-in at that height
+   (`placement.OUTLINE_*`). (5b) where the 2D box is the projection of the 3D box (KITTI's
+   labels), its top edge then fixes the height exactly;
 6. fewer than MIN_POINTS returns: the image-only solution constrained to the road plane;
 7. score = 2D score x a quality from the number of returns, the faces that pin the box and the
-   winning yaw's cost; a box whose depth is the image's (step 6, or moved by the check of
-   `_image_depth_check`) is trusted as `mono`'s is, less with distance (d^2 / (f H) metres of
-   depth per pixel of its bottom edge).
+   winning yaw's cost; an image-only box (step 6) is trusted as `mono`'s is, less with distance
+   (d^2 / (f H) metres of depth per pixel of its bottom edge).
 
 Step 2 is `clusters.object_returns`, steps 4-5 are `placement`'s kernels.
 """
@@ -49,7 +51,7 @@ from kitti.boxes import wrap_angle
 from kitti.calib import Calibration
 
 from .clusters import MIN_POINTS, object_returns
-from .mono import contact_of, solve_from_alpha, solve_translation, wrap_one
+from .mono import contact_of, solve_from_alpha, wrap_one
 from .placement import (
     FOCAL_PX,
     MAX_GROW_L,
@@ -59,7 +61,6 @@ from .placement import (
     height_from_box,
     length_from_sides,
     percentile,
-    road_y,
     side_misfit,
     translation,
 )
@@ -79,13 +80,6 @@ CLAIM_MIN_SCORE = 0.3  # 2D score a box needs to claim returns
 ROOF_SEEN = 0.75       # highest return above this share of the prior height: the roof is hit
 ROOF_GAP = 0.2         # m, the top lies at most this far above the highest roof return (64 beams:
                        # 90 % within 0.14 m on the testbed's cars; sparse scans a little more)
-LOW_RETURNS = 0.4      # share of the height: no return below it, and the face may be unseen
-IMAGE_DEPTH_K = 1.0    # returns more than this many image-depth sigmas behind the road contact
-                       # are bonnet, boot or windows: the image's depth is taken. One sigma: on
-                       # 240 generated tuning frames (seed 4100) with 16 uniform rings the cars'
-                       # returns put them within 0.4 m of the truth more often than the image
-                       # did (70-77 % against 44-46 %), and 0.15 (before) moved cars the returns
-                       # had right: 67.6 -> 69.7 moderate AP there, 0.5-1.5 all alike
 SIGMA_YAW_PRIOR = np.deg2rad(20.0)  # the network's orientation, against the 2D box's evidence
 SAME_YAW = np.deg2rad(1.0)  # an L-shape this close to the network's yaw is taken as agreeing
 COST_SCALE = 8.0       # the winning yaw's cost (squared normalised misfits: yaw prior, rectangle,
@@ -162,12 +156,6 @@ def _image_depth_trust(location: np.ndarray) -> float:
     return 1.0 / (1.0 + _depth_per_px(float(np.hypot(location[0], location[2]))))
 
 
-def _image_depth_sigma(d: float) -> float:
-    """Depth error of the ground contact under a 2D box: 1.5 px of the bottom edge plus 2 % for
-    the size and orientation behind the contact."""
-    return 1.5 * _depth_per_px(d) + 0.02 * d
-
-
 @dataclass(frozen=True)
 class _View:
     """The camera and frame facts every per-box step needs."""
@@ -177,7 +165,6 @@ class _View:
     cam: int
     outline: str          # how the 2D boxes outline their objects (lifter.methods.OUTLINES)
     sensor_xz: np.ndarray  # (2,) LiDAR origin, bird's-eye (rect x, z)
-    frame_plane: np.ndarray  # the frame's road plane (the local planes are per box)
 
     @property
     def P(self) -> np.ndarray:
@@ -185,15 +172,14 @@ class _View:
 
 
 class _Placed(NamedTuple):
-    """One yaw hypothesis placed: its yaw, bottom centre, size, the faces its returns pin, its
-    cost, and whether its depth is the image's (`_image_depth_check` moved it)."""
+    """One yaw hypothesis placed: its yaw, bottom centre, size, the faces its returns pin and its
+    cost."""
 
     ry: float
     T: np.ndarray
     dims: np.ndarray
     pinned: int
     cost: float
-    from_image: bool
 
 
 @dataclass
@@ -218,24 +204,15 @@ def _fallback(box: Box2D, prior: Prior, view: _View, plane: np.ndarray) -> Lifte
 
 
 def _box_for_yaw(ry: float, obj: _Returns, prior: Prior, small: bool, box: Box2D, view: _View,
-                 plane: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, float, bool]:
+                 plane: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, float]:
     """Size and bottom centre of the box with yaw ry around the object's returns (steps 4-5,
-    `_size_and_place`), checked against the image's depth where no return lies low on the
-    object; also its cost: its misfit to the 2D box's sides and its length's to the prior's (0
-    when the returns measure the length); and whether its depth is the image's."""
+    `_size_and_place`), the faces they pin, and its cost: its misfit to the 2D box's sides and
+    its length's to the prior's (0 when the returns measure the length)."""
     h, w, l = (float(v) for v in prior.dims)
     T, dims, pinned, misfit, length_cost = _size_and_place(
         obj.xz, obj.u, obj.height, h, w, l, ry, small, box.bbox, view.sensor_xz, obj.centroid,
         view.P, view.image_size[0], plane)
-    moved = None
-    if (not small and obj.height.min() > LOW_RETURNS * dims[0]
-            and box.bbox[3] < view.image_size[1] - 2.0):
-        moved = _image_depth_check(T, dims, ry, box, view, plane)  # may move it along its ray
-        if moved is not None:
-            T = moved
-            misfit = side_misfit(np.array([[*T, *dims, ry]]), view.P, box.bbox,
-                                 view.image_size[0])[0]
-    return T, dims, pinned, misfit / SIGMA_SIDE_PX ** 2 + length_cost, moved is not None
+    return T, dims, pinned, misfit / SIGMA_SIDE_PX ** 2 + length_cost
 
 
 @numba.njit(cache=True, nogil=True)
@@ -259,8 +236,8 @@ def _size_and_place(xz: np.ndarray, u: np.ndarray, height: np.ndarray, h: float,
     top = height.max()
     if top > ROOF_SEEN * h:  # the roof is hit: the top lies at most ROOF_GAP above its returns
         h = min(max(h, top), top + ROOF_GAP)
-    T, dims, pinned, slide = translation(xz, u, h, w, l, ry, bbox, sensor_xz, centroid, P, width,
-                                         plane)
+    T, dims, pinned, slide = translation(xz, u, height, h, w, l, ry, bbox, sensor_xz, centroid, P,
+                                         width, plane, not small)
     length_cost = 0.0
     if not small and slide.any():  # length not measured: let the 2D box's width choose it
         T, dims[2] = length_from_sides(T, dims[0], dims[1], dims[2], ry, slide, bbox, P, width,
@@ -270,41 +247,13 @@ def _size_and_place(xz: np.ndarray, u: np.ndarray, height: np.ndarray, h: float,
     return T, dims, pinned, side_misfit(box7, P, bbox, width)[0], length_cost
 
 
-def _image_depth_check(T: np.ndarray, dims: np.ndarray, ry: float, box: Box2D, view: _View,
-                       plane: np.ndarray) -> np.ndarray | None:
-    """No return on the lower part of the object: a sparse scan's few rings crossed only its
-    bonnet, boot or windows, and the extreme the fit took for a face may lie behind the real one.
-    The road under the 2D box's bottom edge says where the object stands; returns cannot lie in
-    front of that but may lie behind it: when they do by more than the image's depth error, the
-    centre moves along the ray to the image's depth. A few centimetres of road height move that
-    depth by a metre at 30 m, so it is taken on both the road under the object and the frame's
-    plane, and the farther of the two is used (a sparse scan's local road may have taken a sill
-    for the road; the frame's plane misses a real road's slope at distance). Returns the moved
-    centre, or None where the returns' depth stands."""
-    sensor = view.sensor_xz
-    ray = T[[0, 2]] - sensor
-    d_fit = np.linalg.norm(ray)
-    d_img = 0.0
-    for pl in (plane, view.frame_plane):  # the second only where the first would move the box
-        try:
-            T_img = solve_translation(dims, ry, box.bbox, view.calib, view.image_size, pl, view.cam,
-                                      contact=contact_of(box.type, view.outline)).location
-        except ValueError:
-            return None
-        d_img = max(d_img, float(np.linalg.norm(T_img[[0, 2]] - sensor)))
-        if d_fit - d_img <= IMAGE_DEPTH_K * _image_depth_sigma(d_img):
-            return None
-    x, z = sensor + ray * (d_img / d_fit)
-    return np.array([x, road_y(x, z, plane), z])
-
-
 def lift_fit(boxes: list[Box2D], priors: list[Prior], pts: FramePoints, calib: Calibration,
              image_size: tuple[int, int], road: LocalRoad | FixedRoad | np.ndarray, cam: int = 2,
              outline: str = "silhouette") -> list[Lifted]:
     """One Lifted per box. `road`: the scan's road (`lifter.road.LocalRoad`: the plane under each
     box) or one plane (a, b, c, d; rect frame)."""
     road = FixedRoad(road) if isinstance(road, np.ndarray) else road
-    view = _View(calib, image_size, cam, outline, pts.sensor[[0, 2]], road.plane)
+    view = _View(calib, image_size, cam, outline, pts.sensor[[0, 2]])
     c, dirs = camera_rays(view.P, np.array([[b.centre[0], b.bbox[3]] for b in boxes]))
     rays = [(c, d) for d in dirs]  # under the middle of each box's bottom edge
     planes = [plane_on_ray(road, *ray) for ray in rays]
@@ -384,7 +333,7 @@ def _fit_box(box: Box2D, prior: Prior, cand: np.ndarray, height: np.ndarray, pts
     c = obj.centroid
     ry_prior = float(wrap_angle(prior.alpha + np.arctan2(c[0], c[1])))
     small = box.type in SMALL_CLASSES
-    ry, T, dims, pinned, cost, from_image = _best_yaw(obj, prior, ry_prior, small, box, view, plane)
+    ry, T, dims, pinned, cost = _best_yaw(obj, prior, ry_prior, small, box, view, plane)
     dims = dims.copy()
     dims[0] = height_from_box(T, dims, ry, box.bbox, view.outline, view.image_size[1], view.P)
     h, w, l = dims
@@ -396,8 +345,6 @@ def _fit_box(box: Box2D, prior: Prior, cand: np.ndarray, height: np.ndarray, pts
     # needed its yaw, length or 2D sides far from what the evidence says less so
     quality = ((0.5 + 0.5 * min(1.0, len(obj.xz) / 30)) * (0.6 + 0.2 * pinned)
                / (1.0 + cost / COST_SCALE))
-    if from_image:
-        quality *= _image_depth_trust(T)
     return Lifted(T, ry, dims, quality=quality), claimed
 
 
@@ -418,11 +365,11 @@ def _best_yaw(obj: _Returns, prior: Prior, ry_prior: float, small: bool, box: Bo
     for ry_h, cost in zip(yaws.tolist(), costs.tolist()):
         if cost >= best_cost:  # its misfit to the 2D box could only add to that
             continue
-        T_h, dims_h, pinned_h, fit_cost, moved_h = _box_for_yaw(ry_h, obj, prior, small, box,
-                                                                view, plane)
+        T_h, dims_h, pinned_h, fit_cost = _box_for_yaw(ry_h, obj, prior, small, box, view,
+                                                       plane)
         cost += fit_cost
         if cost < best_cost:
-            best_fit = _Placed(ry_h, T_h, dims_h, pinned_h, cost, moved_h)
+            best_fit = _Placed(ry_h, T_h, dims_h, pinned_h, cost)
             best_cost, best_box_cost = cost, fit_cost
     if small or len(body) < MIN_LSHAPE or best_box_cost <= 1.0:
         return best_fit
@@ -449,9 +396,9 @@ def _refine_yaw(best_fit: _Placed, box_cost: float, body: np.ndarray, obj: _Retu
     def tried(y: float, c: float) -> None:
         if c >= best[0].cost:  # its misfit to the 2D box could only add to that
             return
-        T, dims, pinned, fit_cost, moved = _box_for_yaw(y, obj, prior, False, box, view, plane)
+        T, dims, pinned, fit_cost = _box_for_yaw(y, obj, prior, False, box, view, plane)
         if c + fit_cost < best[0].cost:
-            best[0] = _Placed(wrap_one(y), T, dims, pinned, c + fit_cost, moved)
+            best[0] = _Placed(wrap_one(y), T, dims, pinned, c + fit_cost)
 
     for k in sorted(range(1, len(yaws)), key=lambda k: pre[k]):
         tried(float(yaws[k]), float(pre[k]))

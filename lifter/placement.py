@@ -36,6 +36,20 @@ SIGMA_SIDE_PX = 2.0    # px, a 2D box side vs the projected 3D box (the body's o
                        # inside the box's corners on the testbed's cars)
 BORDER_LEFT = 1.0      # px: a 2D side at or beyond these is cut by the image border
 BORDER_RIGHT = 2.0     # px from the right edge (image width - this)
+# A vehicle's outline is set in from its box above the bumpers: the bonnet slopes back to the
+# windscreen's foot, the glasshouse (windows, pillars, roof) narrows above the belt line, so
+# returns that look like a face up there lie inside the box. Set-in against height (rows: share of
+# the height; share of the length from the front and the rear end, of the width from a side),
+# linear between stations that are means over sedan, hatchback, estate and SUV profiles read off
+# makers' side views (VW Golf VI, Passat B7 sedan and estate, Tiguan; bonnet front 0.46-0.60 h,
+# belt line 0.57-0.65 h): front face to 0.44 h, bonnet front 0.51 h (0.12 m in), windscreen foot
+# at the belt line 0.25-0.33 l in, roof front ~0.5 l (a 52-63 degree rake); tailgate or boot lid
+# to 0.55 h, rear window foot 0.02-0.21 l in, roof end 0.04-0.34 l; the body 0.1 m inside the
+# mirrors (the box's width) and the glass's top at ~0.8 of the body's half width
+OUTLINE_FRONT = np.array([[0.44, 0.51, 0.61, 0.97], [0.0, 0.03, 0.30, 0.50]])
+OUTLINE_REAR = np.array([[0.55, 0.61, 0.97], [0.0, 0.07, 0.14]])
+OUTLINE_SIDE = np.array([[0.61, 0.62, 0.97], [0.0, 0.07, 0.15]])
+SIGMA_OUTLINE = (0.3, 0.1)  # m, spread of the end and the side set-ins over those profiles
 
 
 
@@ -91,9 +105,9 @@ def side_misfit(boxes7: np.ndarray, P: np.ndarray, bbox: np.ndarray, width: int)
 
 
 @numba.njit(cache=True, nogil=True)
-def _faces(pxz: np.ndarray, pu: np.ndarray, e: np.ndarray, e_other: np.ndarray, size: float,
-           other: float, grow: float, sensor_xz: np.ndarray, bbox: np.ndarray,
-           width: int) -> tuple[float, float, float, float]:
+def _faces(pxz: np.ndarray, pu: np.ndarray, ph: np.ndarray, e: np.ndarray, e_other: np.ndarray,
+           size: float, other: float, grow: float, sensor_xz: np.ndarray, bbox: np.ndarray,
+           width: int, h: float, vehicle: bool, end: bool) -> tuple[float, float, float, float]:
     """The centre coordinate along axis e implied by the faces the returns show.
 
     The extreme of the returns facing the sensor is a face when the returns beside it spread
@@ -102,9 +116,13 @@ def _faces(pxz: np.ndarray, pu: np.ndarray, e: np.ndarray, e_other: np.ndarray, 
     bonnet returns are no face). An extreme that touches a box side at the image border is cut
     there, and one that ends inside the box without showing its face is cut by an occluder:
     neither is used. When both ends are shown, their distance is the size (within SHRINK below
-    and `grow` above the prior). Returns the centre coordinate, a weight factor, the size, and
-    which way the centre moves along e when the size grows with the anchoring face kept (+1, -1;
-    0 when the returns measure the size).
+    and `grow` above the prior). A vehicle's near face whose lowest return lies above its bumpers
+    (ph: heights above the road, h the vehicle's height; `end`: e is its heading, whose + end is
+    the front) is its bonnet's or glasshouse's: the box's face lies the set-in of OUTLINE_* at
+    that height nearer, known to SIGMA_OUTLINE.
+    Returns the centre coordinate, a weight factor, the size, and which way the centre moves
+    along e when the size grows with the anchoring face kept (+1, -1; 0 when the returns measure
+    the size).
     """
     n = len(pxz)
     p = pxz[:, 0] * e[0] + pxz[:, 1] * e[1]
@@ -115,6 +133,7 @@ def _faces(pxz: np.ndarray, pu: np.ndarray, e: np.ndarray, e_other: np.ndarray, 
     tol = max(FACE_TOL_PX, FACE_TOL_FRAC * (x2 - x1))
     cut1, cut2 = x1 <= BORDER_LEFT, x2 >= width - BORDER_RIGHT
     ok_near = ok_far = False
+    near_low = np.inf  # the lowest return at the near face
     for which in range(2):
         near = (which == 0) == near_lo  # face lo first, then hi
         face = lo if which == 0 else hi
@@ -135,6 +154,8 @@ def _faces(pxz: np.ndarray, pu: np.ndarray, e: np.ndarray, e_other: np.ndarray, 
             a0 += pxz[j, 0]
             a1 += pxz[j, 1]
             count += 1
+            if near:
+                near_low = min(near_low, ph[j])
             q_lo, q_hi = min(q_lo, q[j]), max(q_hi, q[j])
         if cut:
             ok = False
@@ -153,6 +174,15 @@ def _faces(pxz: np.ndarray, pu: np.ndarray, e: np.ndarray, e_other: np.ndarray, 
         near_face, near_sign, far_face, far_sign = lo, 1.0, hi, -1.0
     else:
         near_face, near_sign, far_face, far_sign = hi, -1.0, lo, 1.0
+    if ok_near and vehicle:
+        if end:  # stations of (height / h, set-in / size), linear between, flat beyond
+            prof = OUTLINE_REAR if near_lo else OUTLINE_FRONT
+        else:
+            prof = OUTLINE_SIDE
+        setin = size * np.interp(near_low / h, prof[0], prof[1])
+        if setin > 0.0:  # a bonnet's or the glasshouse's face: the box's lies nearer
+            return (near_face + near_sign * (size / 2 - setin),
+                    SIGMA_FACE / SIGMA_OUTLINE[0 if end else 1], size, near_sign)
     if ok_near and ok_far:  # both ends shown: the returns measure the size too
         measured = p.max() - p.min()
         if (1 - SHRINK) * size <= measured <= size + grow:
@@ -183,16 +213,18 @@ def _wls2(A: np.ndarray, b: np.ndarray, w: np.ndarray) -> tuple[float, float]:
 
 
 @numba.njit(cache=True, nogil=True)
-def translation(pxz: np.ndarray, pu: np.ndarray, h: float, w: float, l: float, ry: float,
-                bbox: np.ndarray, sensor_xz: np.ndarray, start_xz: np.ndarray, P: np.ndarray,
-                width: int, plane: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, np.ndarray]:
+def translation(pxz: np.ndarray, pu: np.ndarray, ph: np.ndarray, h: float, w: float, l: float,
+                ry: float, bbox: np.ndarray, sensor_xz: np.ndarray, start_xz: np.ndarray,
+                P: np.ndarray, width: int, plane: np.ndarray,
+                vehicle: bool) -> tuple[np.ndarray, np.ndarray, int, np.ndarray]:
     """Bottom-centre (x, y, z) by weighted least squares on faces, 2D sides and the road plane,
     the size (h, w, l) with l and w measured where the returns show both ends, how many of the two
     axes a confirmed face pins down, and the (x, z) direction the centre moves per metre of length
     with the anchoring face kept (zero when the returns measure the length).
 
-    pxz, pu: the object's returns (bird's-eye) and their image columns; start_xz: where the
-    centroid pull starts."""
+    pxz, pu, ph: the object's returns (bird's-eye), their image columns and heights above the
+    road; start_xz: where the centroid pull starts; vehicle: its outline is a vehicle's, set in
+    above the bumpers (`_faces`)."""
     ea = np.array([np.cos(ry), -np.sin(ry)])  # heading in (x, z)
     eb = np.array([np.sin(ry), np.cos(ry)])   # lateral
     ray = start_xz - sensor_xz
@@ -206,8 +238,8 @@ def translation(pxz: np.ndarray, pu: np.ndarray, h: float, w: float, l: float, r
     for k in range(2):
         e, eo = (ea, eb) if k == 0 else (eb, ea)
         size, other, grow = (l, w, MAX_GROW_L) if k == 0 else (w, l, MAX_GROW_W)
-        centre, weight, sizes[k], sl = _faces(pxz, pu, e, eo, size, other, grow, sensor_xz, bbox,
-                                              width)
+        centre, weight, sizes[k], sl = _faces(pxz, pu, ph, e, eo, size, other, grow, sensor_xz,
+                                              bbox, width, h, vehicle, k == 0)
         if k == 0:
             slide = 0.5 * sl * e
         pinned += weight == 1.0

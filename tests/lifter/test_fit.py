@@ -6,9 +6,10 @@ import pytest
 
 from kitti.boxes import box_corners, wrap_angle
 from kitti.iou import iou_2d
-from lifter.fit import IMAGE_DEPTH_K, lift_fit
+from lifter.fit import lift_fit
 from lifter.ground import fit_ground_plane
 from lifter.mono import solve_from_alpha
+from lifter.placement import OUTLINE_REAR
 from lifter.points import frame_points
 from lifter.types import Box2D, Prior
 from tests.lifter.synth import IMAGE_SIZE, PLANE, make_frame
@@ -71,26 +72,31 @@ def test_fit_stays_sane_with_few_beams(beams):
     assert max(errs) < 0.5
 
 
-def test_returns_only_behind_the_face_take_the_depth_from_the_image(monkeypatch):
-    """A sparse scan whose one ring crossed a car's roof, 1.7 m behind its near face (as a ring
-    over a bonnet or boot does): the fit alone puts the near face there; the road contact under the
-    2D box brings it back to the truth."""
-    boxes = np.array([[2.0, 1.65, 12.0, 1.5, 1.7, 4.2, -np.pi / 2]])  # driving away, seen from behind
-    fr = make_frame(boxes)
+def test_a_ring_over_the_rear_window_stands_the_face_in_front_of_it():
+    """A sparse scan's one ring crossed a car's rear window, which lies inside the box (a car's
+    glasshouse is set in from its body: `placement.OUTLINE_REAR`): the fit puts the box's rear
+    face that far in front of the returns, at the truth, and keeps the yaw and the size."""
+    car = np.array([2.0, 1.65, 12.0, 1.5, 1.7, 4.2, -np.pi / 2])  # driving away, seen from behind
+    fr = make_frame(car[None])
     rect = fr.calib.lidar_to_rect(fr.velodyne[:, :3].astype(float))
-    on_car = fr.hit_id == 0
-    roof = on_car & (rect[:, 1] < 1.65 - 1.5 + 0.01) & (np.abs(rect[:, 2] - 11.6) < 0.1)
-    roof[np.flatnonzero(roof)[6:]] = False  # fewer than MIN_LSHAPE: the network's yaw stands
-    assert roof.sum() == 6
-    fr.velodyne = fr.velodyne[~on_car | roof]
-    near_face = {}
-    for k in (1e9, IMAGE_DEPTH_K):  # the image check off, then as shipped
-        monkeypatch.setattr("lifter.fit.IMAGE_DEPTH_K", k)
-        out = _lift(fr, 0.0, np.random.default_rng(0), plane=PLANE)[0]
-        near_face[k] = box_corners(np.array([[*out.location, *out.dims, out.rotation_y]]))[0][:, 2].min()
-    truth = 12.0 - 4.2 / 2
-    assert near_face[1e9] - truth > 1.0
-    assert abs(near_face[IMAGE_DEPTH_K] - truth) < 0.1
+    rear = 12.0 - 4.2 / 2
+    height = 1.65 - rect[:, 1]
+    face = (fr.hit_id == 0) & (rect[:, 2] < rear + 0.01)
+    h0 = height[face][np.argmin(np.abs(height[face] - 0.7 * 1.5))]
+    ring = face & (np.abs(height - h0) < 0.015)  # the laser that crosses it at 0.7 of its height
+    assert ring.sum() >= 20
+    set_in = 4.2 * np.interp(height[ring] / 1.5, *OUTLINE_REAR)  # the window, ~0.38 m inside
+    rect = rect[ring]
+    rect[:, 2] += set_in
+    fr.velodyne = np.concatenate([fr.velodyne[fr.hit_id == -1],
+                                  np.column_stack([fr.calib.rect_to_lidar(rect),
+                                                   np.full(len(rect), 0.5)]).astype(np.float32)])
+    out = _lift(fr, 0.0, np.random.default_rng(0), plane=PLANE)[0]
+    near_face = box_corners(np.array([[*out.location, *out.dims, out.rotation_y]]))[0][:, 2].min()
+    assert set_in.min() > 0.3
+    assert abs(near_face - rear) < 0.03
+    assert abs(np.rad2deg(wrap_angle(out.rotation_y - car[6]))) < 1.0
+    np.testing.assert_allclose(out.dims, car[3:6], atol=0.02)
 
 
 def test_ground_plane_from_the_scan():

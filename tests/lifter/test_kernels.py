@@ -182,8 +182,8 @@ def test_size_and_place_matches_numpy():
             w_ref = ext_b if w < ext_b <= w + fit.MAX_GROW_W else w
         if height.max() > fit.ROOF_SEEN * h:
             h_ref = float(np.clip(h, height.max(), height.max() + fit.ROOF_GAP))
-        T, dims, pinned, slide = translation(xz, u, h_ref, w_ref, l_ref, ry, bbox, sensor,
-                                             centroid, P, SIZE[0], plane)
+        T, dims, pinned, slide = translation(xz, u, height, h_ref, w_ref, l_ref, ry, bbox, sensor,
+                                             centroid, P, SIZE[0], plane, not small)
         length_cost = 0.0
         if not small and slide.any():
             T, dims[2] = length_from_sides(T, *dims, ry, slide, bbox, P, SIZE[0], plane)

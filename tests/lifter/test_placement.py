@@ -53,8 +53,8 @@ def test_translation_recovers_the_bottom_centre_from_two_faces():
     bbox = project_boxes(CAR[None], CALIB, (WIDTH, 375))[0]
     xz, u = _face_returns(CAR)
     start = xz.mean(axis=0)  # the centroid of the returns: on the near faces, not the centre
-    T, dims, pinned, slide = translation(xz, u, *CAR[3:], bbox, SENSOR[[0, 2]], start, P, WIDTH,
-                                         PLANE)
+    T, dims, pinned, slide = translation(xz, u, np.zeros(len(xz)), *CAR[3:], bbox, SENSOR[[0, 2]],
+                                         start, P, WIDTH, PLANE, True)
     # the only inconsistent row is the weak pull to the centroid (sigma 3 m against the faces'
     # 5 cm), which the faces hold to under a millimetre
     np.testing.assert_allclose(T, CAR[:3], atol=1e-3)
