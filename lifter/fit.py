@@ -26,7 +26,7 @@ under CLAIM_MIN_SCORE after the others):
 5. translation (x, z) by weighted least squares: the faces the returns confirm must touch the
    extreme returns, the box's outline must meet the 2D box's left and right sides (across the
    camera ray only: a 2D side fixes a bearing, not a depth), and the bottom sits on the road
-   plane; two passes (the corner that touches each side may change). A vehicle's face whose
+   plane; two passes (the corner that touches each side may change). A car's face whose
    returns all lie above its bumpers is its bonnet's or glasshouse's (a sparse scan's one ring
    over a far car): the box's face lies nearer by the outline's set-in at that height
    (`placement.OUTLINE_*`). (5b) where the 2D box is the projection of the 3D box (KITTI's
@@ -210,18 +210,21 @@ def _box_for_yaw(ry: float, obj: _Returns, prior: Prior, small: bool, box: Box2D
     its length's to the prior's (0 when the returns measure the length)."""
     h, w, l = (float(v) for v in prior.dims)
     T, dims, pinned, misfit, length_cost = _size_and_place(
-        obj.xz, obj.u, obj.height, h, w, l, ry, small, box.bbox, view.sensor_xz, obj.centroid,
+        obj.xz, obj.u, obj.height, h, w, l, ry, small, box.type == "Car", box.bbox, view.sensor_xz,
+        obj.centroid,
         view.P, view.image_size[0], plane)
     return T, dims, pinned, misfit / SIGMA_SIDE_PX ** 2 + length_cost
 
 
 @numba.njit(cache=True, nogil=True)
 def _size_and_place(xz: np.ndarray, u: np.ndarray, height: np.ndarray, h: float, w: float,
-                    l: float, ry: float, small: bool, bbox: np.ndarray, sensor_xz: np.ndarray,
+                    l: float, ry: float, small: bool, car: bool, bbox: np.ndarray,
+                    sensor_xz: np.ndarray,
                     centroid: np.ndarray, P: np.ndarray, width: int,
                     plane: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, float, float]:
     """The prior size (h, w, l) grown to hold the returns and brought to the roof, the faces, 2D
-    sides and road fixing the centre, and an unmeasured length chosen with the 2D box: the bottom
+    sides and road fixing the centre (a car's faces above its bumpers set in, `car`), and an
+    unmeasured length chosen with the 2D box: the bottom
     centre, the size, the pinned count, the box's misfit to the 2D box's sides (`side_misfit`)
     and its length's cost. One kernel: tried for every yaw hypothesis, its dozen small steps cost
     more in numpy's call overhead than in arithmetic."""
@@ -237,7 +240,7 @@ def _size_and_place(xz: np.ndarray, u: np.ndarray, height: np.ndarray, h: float,
     if top > ROOF_SEEN * h:  # the roof is hit: the top lies at most ROOF_GAP above its returns
         h = min(max(h, top), top + ROOF_GAP)
     T, dims, pinned, slide = translation(xz, u, height, h, w, l, ry, bbox, sensor_xz, centroid, P,
-                                         width, plane, not small)
+                                         width, plane, car)
     length_cost = 0.0
     if not small and slide.any():  # length not measured: let the 2D box's width choose it
         T, dims[2] = length_from_sides(T, dims[0], dims[1], dims[2], ry, slide, bbox, P, width,

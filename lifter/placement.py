@@ -36,7 +36,7 @@ SIGMA_SIDE_PX = 2.0    # px, a 2D box side vs the projected 3D box (the body's o
                        # inside the box's corners on the testbed's cars)
 BORDER_LEFT = 1.0      # px: a 2D side at or beyond these is cut by the image border
 BORDER_RIGHT = 2.0     # px from the right edge (image width - this)
-# A vehicle's outline is set in from its box above the bumpers: the bonnet slopes back to the
+# A car's outline is set in from its box above the bumpers: the bonnet slopes back to the
 # windscreen's foot, the glasshouse (windows, pillars, roof) narrows above the belt line, so
 # returns that look like a face up there lie inside the box. Set-in against height (rows: share of
 # the height; share of the length from the front and the rear end, of the width from a side),
@@ -107,7 +107,7 @@ def side_misfit(boxes7: np.ndarray, P: np.ndarray, bbox: np.ndarray, width: int)
 @numba.njit(cache=True, nogil=True)
 def _faces(pxz: np.ndarray, pu: np.ndarray, ph: np.ndarray, e: np.ndarray, e_other: np.ndarray,
            size: float, other: float, grow: float, sensor_xz: np.ndarray, bbox: np.ndarray,
-           width: int, h: float, vehicle: bool, end: bool) -> tuple[float, float, float, float]:
+           width: int, h: float, car: bool, end: bool) -> tuple[float, float, float, float]:
     """The centre coordinate along axis e implied by the faces the returns show.
 
     The extreme of the returns facing the sensor is a face when the returns beside it spread
@@ -116,10 +116,10 @@ def _faces(pxz: np.ndarray, pu: np.ndarray, ph: np.ndarray, e: np.ndarray, e_oth
     bonnet returns are no face). An extreme that touches a box side at the image border is cut
     there, and one that ends inside the box without showing its face is cut by an occluder:
     neither is used. When both ends are shown, their distance is the size (within SHRINK below
-    and `grow` above the prior). A vehicle's near face whose lowest return lies above its bumpers
-    (ph: heights above the road, h the vehicle's height; `end`: e is its heading, whose + end is
-    the front) is its bonnet's or glasshouse's: the box's face lies the set-in of OUTLINE_* at
-    that height nearer, known to SIGMA_OUTLINE.
+    and `grow` above the prior). A car's near face whose lowest return lies above its bumpers
+    (ph: heights above the road, h the car's height; `end`: e is its heading, whose + end is the
+    front) is its bonnet's or glasshouse's: the box's face lies the set-in of OUTLINE_* at that
+    height nearer, known to SIGMA_OUTLINE (vans and trucks have other outlines: none is taken).
     Returns the centre coordinate, a weight factor, the size, and which way the centre moves
     along e when the size grows with the anchoring face kept (+1, -1; 0 when the returns measure
     the size).
@@ -174,7 +174,7 @@ def _faces(pxz: np.ndarray, pu: np.ndarray, ph: np.ndarray, e: np.ndarray, e_oth
         near_face, near_sign, far_face, far_sign = lo, 1.0, hi, -1.0
     else:
         near_face, near_sign, far_face, far_sign = hi, -1.0, lo, 1.0
-    if ok_near and vehicle:
+    if ok_near and car:
         if end:  # stations of (height / h, set-in / size), linear between, flat beyond
             prof = OUTLINE_REAR if near_lo else OUTLINE_FRONT
         else:
@@ -216,15 +216,15 @@ def _wls2(A: np.ndarray, b: np.ndarray, w: np.ndarray) -> tuple[float, float]:
 def translation(pxz: np.ndarray, pu: np.ndarray, ph: np.ndarray, h: float, w: float, l: float,
                 ry: float, bbox: np.ndarray, sensor_xz: np.ndarray, start_xz: np.ndarray,
                 P: np.ndarray, width: int, plane: np.ndarray,
-                vehicle: bool) -> tuple[np.ndarray, np.ndarray, int, np.ndarray]:
+                car: bool) -> tuple[np.ndarray, np.ndarray, int, np.ndarray]:
     """Bottom-centre (x, y, z) by weighted least squares on faces, 2D sides and the road plane,
     the size (h, w, l) with l and w measured where the returns show both ends, how many of the two
     axes a confirmed face pins down, and the (x, z) direction the centre moves per metre of length
     with the anchoring face kept (zero when the returns measure the length).
 
     pxz, pu, ph: the object's returns (bird's-eye), their image columns and heights above the
-    road; start_xz: where the centroid pull starts; vehicle: its outline is a vehicle's, set in
-    above the bumpers (`_faces`)."""
+    road; start_xz: where the centroid pull starts; car: its outline is a car's, set in above the
+    bumpers (`_faces`)."""
     ea = np.array([np.cos(ry), -np.sin(ry)])  # heading in (x, z)
     eb = np.array([np.sin(ry), np.cos(ry)])   # lateral
     ray = start_xz - sensor_xz
@@ -239,7 +239,7 @@ def translation(pxz: np.ndarray, pu: np.ndarray, ph: np.ndarray, h: float, w: fl
         e, eo = (ea, eb) if k == 0 else (eb, ea)
         size, other, grow = (l, w, MAX_GROW_L) if k == 0 else (w, l, MAX_GROW_W)
         centre, weight, sizes[k], sl = _faces(pxz, pu, ph, e, eo, size, other, grow, sensor_xz,
-                                              bbox, width, h, vehicle, k == 0)
+                                              bbox, width, h, car, k == 0)
         if k == 0:
             slide = 0.5 * sl * e
         pinned += weight == 1.0

@@ -171,6 +171,7 @@ def test_size_and_place_matches_numpy():
         xz, u, height, car, bbox = _car_returns(rng, int(rng.integers(20, 400)))
         h, w, l = car[3:6] + rng.normal(0, 0.2, 3)
         ry, small = car[6] + rng.normal(0, 0.05), trial % 5 == 0
+        is_car = trial % 3 != 0
         centroid = xz.mean(axis=0)
         pa = xz @ np.array([np.cos(ry), -np.sin(ry)])
         pb = xz @ np.array([np.sin(ry), np.cos(ry)])
@@ -183,14 +184,14 @@ def test_size_and_place_matches_numpy():
         if height.max() > fit.ROOF_SEEN * h:
             h_ref = float(np.clip(h, height.max(), height.max() + fit.ROOF_GAP))
         T, dims, pinned, slide = translation(xz, u, height, h_ref, w_ref, l_ref, ry, bbox, sensor,
-                                             centroid, P, SIZE[0], plane, not small)
+                                             centroid, P, SIZE[0], plane, is_car)
         length_cost = 0.0
         if not small and slide.any():
             T, dims[2] = length_from_sides(T, *dims, ry, slide, bbox, P, SIZE[0], plane)
             length_cost = ((dims[2] - l_ref) / fit.SIGMA_LENGTH) ** 2
         misfit = side_misfit(np.array([[*T, *dims, ry]]), P, bbox, SIZE[0])[0]
-        out = fit._size_and_place(xz, u, height, h, w, l, ry, small, bbox, sensor, centroid, P,
-                                  SIZE[0], plane)
+        out = fit._size_and_place(xz, u, height, h, w, l, ry, small, is_car, bbox, sensor,
+                                  centroid, P, SIZE[0], plane)
         np.testing.assert_allclose(out[0], T, **TIGHT)
         np.testing.assert_allclose(out[1], dims, **TIGHT)
         assert out[2] == pinned
