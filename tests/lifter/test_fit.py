@@ -9,7 +9,7 @@ from kitti.iou import iou_2d
 from lifter.fit import lift_fit
 from lifter.ground import fit_ground_plane
 from lifter.mono import solve_from_alpha
-from lifter.placement import OUTLINE_REAR
+from lifter.placement import OUTLINE_FRONT, OUTLINE_REAR
 from lifter.points import frame_points
 from lifter.types import Box2D, Prior
 from tests.lifter.synth import IMAGE_SIZE, PLANE, make_frame
@@ -72,20 +72,23 @@ def test_fit_stays_sane_with_few_beams(beams):
     assert max(errs) < 0.5
 
 
-def test_a_ring_over_the_rear_window_stands_the_face_in_front_of_it():
-    """A sparse scan's one ring crossed a car's rear window, which lies inside the box (a car's
-    glasshouse is set in from its body: `placement.OUTLINE_REAR`): the fit puts the box's rear
-    face that far in front of the returns, at the truth, and keeps the yaw and the size."""
-    car = np.array([2.0, 1.65, 12.0, 1.5, 1.7, 4.2, -np.pi / 2])  # driving away, seen from behind
+@pytest.mark.parametrize("ry, eta, outline", [(-np.pi / 2, 0.7, OUTLINE_REAR),  # seen from behind
+                                                (np.pi / 2, 0.56, OUTLINE_FRONT)])  # and the front
+def test_a_ring_over_the_glass_or_bonnet_stands_the_face_in_front_of_it(ry, eta, outline):
+    """A sparse scan's one ring crossed a car's rear window or bonnet, which lie inside the box (a
+    car's glasshouse and bonnet are set in from its body: `placement.OUTLINE_*`): the fit puts the
+    box's near face that far in front of the returns, at the truth, and keeps the yaw and the
+    size."""
+    car = np.array([2.0, 1.65, 12.0, 1.5, 1.7, 4.2, ry])
     fr = make_frame(car[None])
     rect = fr.calib.lidar_to_rect(fr.velodyne[:, :3].astype(float))
-    rear = 12.0 - 4.2 / 2
+    near = 12.0 - 4.2 / 2
     height = 1.65 - rect[:, 1]
-    face = (fr.hit_id == 0) & (rect[:, 2] < rear + 0.01)
-    h0 = height[face][np.argmin(np.abs(height[face] - 0.7 * 1.5))]
-    ring = face & (np.abs(height - h0) < 0.015)  # the laser that crosses it at 0.7 of its height
+    face = (fr.hit_id == 0) & (rect[:, 2] < near + 0.01)
+    h0 = height[face][np.argmin(np.abs(height[face] - eta * 1.5))]
+    ring = face & (np.abs(height - h0) < 0.015)  # the laser that crosses it at eta of its height
     assert ring.sum() >= 20
-    set_in = 4.2 * np.interp(height[ring] / 1.5, *OUTLINE_REAR)  # the window, ~0.38 m inside
+    set_in = 4.2 * np.interp(height[ring] / 1.5, *outline)
     rect = rect[ring]
     rect[:, 2] += set_in
     fr.velodyne = np.concatenate([fr.velodyne[fr.hit_id == -1],
@@ -94,9 +97,10 @@ def test_a_ring_over_the_rear_window_stands_the_face_in_front_of_it():
     out = _lift(fr, 0.0, np.random.default_rng(0), plane=PLANE)[0]
     near_face = box_corners(np.array([[*out.location, *out.dims, out.rotation_y]]))[0][:, 2].min()
     assert set_in.min() > 0.3
-    assert abs(near_face - rear) < 0.03
+    assert abs(near_face - near) < 0.03
     assert abs(np.rad2deg(wrap_angle(out.rotation_y - car[6]))) < 1.0
-    np.testing.assert_allclose(out.dims, car[3:6], atol=0.02)
+    np.testing.assert_allclose(out.dims[:2], car[3:5], atol=0.02)
+    assert abs(out.dims[2] - car[5]) <= 0.011 * car[5]  # one step of the length grid
 
 
 def test_ground_plane_from_the_scan():
