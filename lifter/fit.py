@@ -210,24 +210,21 @@ def _box_for_yaw(ry: float, obj: _Returns, prior: Prior, small: bool, box: Box2D
     its length's to the prior's (0 when the returns measure the length)."""
     h, w, l = (float(v) for v in prior.dims)
     T, dims, pinned, misfit, length_cost = _size_and_place(
-        obj.xz, obj.u, obj.height, h, w, l, ry, small, box.type == "Car", box.bbox, view.sensor_xz,
-        obj.centroid,
-        view.P, view.image_size[0], plane)
+        obj.xz, obj.u, obj.height, h, w, l, ry, small, box.type == "Car", box.bbox,
+        view.sensor_xz, obj.centroid, view.P, view.image_size[0], plane)
     return T, dims, pinned, misfit / SIGMA_SIDE_PX ** 2 + length_cost
 
 
 @numba.njit(cache=True, nogil=True)
 def _size_and_place(xz: np.ndarray, u: np.ndarray, height: np.ndarray, h: float, w: float,
                     l: float, ry: float, small: bool, car: bool, bbox: np.ndarray,
-                    sensor_xz: np.ndarray,
-                    centroid: np.ndarray, P: np.ndarray, width: int,
+                    sensor_xz: np.ndarray, centroid: np.ndarray, P: np.ndarray, width: int,
                     plane: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, float, float]:
     """The prior size (h, w, l) grown to hold the returns and brought to the roof, the faces, 2D
-    sides and road fixing the centre (a car's faces above its bumpers set in, `car`), and an
-    unmeasured length chosen with the 2D box: the bottom
-    centre, the size, the pinned count, the box's misfit to the 2D box's sides (`side_misfit`)
-    and its length's cost. One kernel: tried for every yaw hypothesis, its dozen small steps cost
-    more in numpy's call overhead than in arithmetic."""
+    sides and road fixing the centre (a `car`'s faces above its bumpers set in), and an unmeasured
+    length chosen with the 2D box: the bottom centre, the size, the pinned count, the box's misfit
+    to the 2D box's sides (`side_misfit`) and its length's cost. One kernel: tried for every yaw
+    hypothesis, its dozen small steps cost more in numpy's call overhead than in arithmetic."""
     c, s = np.cos(ry), np.sin(ry)
     pa = xz[:, 0] * c + xz[:, 1] * -s
     pb = xz[:, 0] * s + xz[:, 1] * c
