@@ -46,7 +46,7 @@ BORDER_RIGHT = 2.0     # px from the right edge (image width - this)
 # at the belt line 0.25-0.33 l in, roof front ~0.5 l (a 52-63 degree rake); tailgate or boot lid
 # to 0.55 h, rear window foot 0.02-0.21 l in, roof end 0.04-0.34 l; the body 0.1 m inside the
 # mirrors (the generator's box width) and the glass's top at ~0.8 of the body's half width (a
-# KITTI label's box hugs the body: there the side set-in is ~0.1 m less, a few per cent of IoU)
+# KITTI label's box hugs the body: there these side set-ins are ~0.1 m too deep)
 OUTLINE_FRONT = np.array([[0.44, 0.51, 0.61, 0.97], [0.0, 0.03, 0.30, 0.50]])
 OUTLINE_REAR = np.array([[0.55, 0.61, 0.97], [0.0, 0.07, 0.14]])
 OUTLINE_SIDE = np.array([[0.61, 0.62, 0.97], [0.0, 0.07, 0.15]])
