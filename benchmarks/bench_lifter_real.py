@@ -44,7 +44,7 @@ def object_errors(gt, pr) -> dict:
             "iou3d": float(iou_3d(gt.box7, pr.box7)[0, 0])}
 
 
-def _moderate(row: dict) -> bool:
+def is_moderate(row: dict) -> bool:
     """KITTI's moderate difficulty (kitti.eval.protocol): 25 px high, occlusion <= 1, truncation
     <= 0.3."""
     return not outside_difficulty(row["height_px"], row["occ"], row["trunc"], 1)
@@ -111,7 +111,7 @@ def main() -> None:
             rows = per_object(data, pred, ids)
             objects[f"{method}/{priors}"] = rows
             cars = [x for x in rows if x["type"] == "Car" and "depth" in x]
-            mod = [x for x in rows if x["type"] == "Car" and _moderate(x)]
+            mod = [x for x in rows if x["type"] == "Car" and is_moderate(x)]
             med = {k: float(np.median([abs(x[k]) for x in cars]))
                    for k in ("d_along", "d_across", "d_y", "d_yaw_deg", "d_l")}
             cap = ap_cap(r.n_gt["Car"][1])

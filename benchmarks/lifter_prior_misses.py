@@ -17,7 +17,7 @@ import json
 
 import numpy as np
 
-from kitti.eval.protocol import outside_difficulty
+from bench_lifter_real import is_moderate  # run as a script: benchmarks/ is on the path
 
 YAW_DEG, LENGTH_M, WIDTH_HEIGHT_M, ALONG_M = 5.0, 0.5, 0.2, 0.4
 
@@ -46,11 +46,10 @@ def main() -> None:
     rows = json.load(open(args.objects))
     net, truth = rows["fit/net"], rows["fit/truth"]
 
-    def moderate(r: dict) -> bool:
-        return (r["type"] == "Car" and "depth" in r
-                and not outside_difficulty(r["height_px"], r["occ"], r["trunc"], 1))
+    def lifted_car(r: dict) -> bool:
+        return r["type"] == "Car" and "depth" in r and is_moderate(r)
 
-    pairs = [(a, b) for a, b in zip(net, truth) if moderate(a) and moderate(b)]
+    pairs = [(a, b) for a, b in zip(net, truth) if lifted_car(a) and lifted_car(b)]
     lost = [a for a, b in pairs if a["iou3d"] < 0.7 <= b["iou3d"]]
     both = sum(a["iou3d"] < 0.7 and b["iou3d"] < 0.7 for a, b in pairs)
     print(f"{args.objects}: {len(pairs)} moderate Cars; missed at IoU 0.7 with both priors {both}, "

@@ -365,8 +365,7 @@ def _best_yaw(obj: _Returns, prior: Prior, ry_prior: float, small: bool, box: Bo
     for ry_h, cost in zip(yaws.tolist(), costs.tolist()):
         if cost >= best_cost:  # its misfit to the 2D box could only add to that
             continue
-        T_h, dims_h, pinned_h, fit_cost = _box_for_yaw(ry_h, obj, prior, small, box, view,
-                                                       plane)
+        T_h, dims_h, pinned_h, fit_cost = _box_for_yaw(ry_h, obj, prior, small, box, view, plane)
         cost += fit_cost
         if cost < best_cost:
             best_fit = _Placed(ry_h, T_h, dims_h, pinned_h, cost)
