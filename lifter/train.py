@@ -25,6 +25,7 @@ from kitti.io import atomic_path, atomic_write_text
 from .crops import crop, jitter_box, to_tensor_layout
 from .multibin import decode, encode, wrap
 from .network import CLASS_OF, CLASSES, NetConfig, SizeOrientationNet, loss_fn
+from .predictor import forward_mirrored
 
 MIN_HEIGHT = 15.0
 MAX_TRUNC = 0.5
@@ -92,13 +93,16 @@ def class_means(s: Samples) -> list[list[float]]:
 
 
 @torch.no_grad()
-def evaluate(net: SizeOrientationNet, s: Samples, size: int, bs: int = 128) -> dict[str, float]:
+def evaluate(net: SizeOrientationNet, s: Samples, size: int, bs: int = 128,
+             mirror: bool = False) -> dict[str, float]:
+    """Loss, size and alpha errors on samples; `mirror` averages each crop with its mirror image
+    as inference does (`lifter.predictor.forward_mirrored`)."""
     net.eval()
     losses, dims_err, ang_err, n = [], [], [], 0
     for start in range(0, len(s.cls), bs):
         idx = np.arange(start, min(start + bs, len(s.cls)))
         x, cls, dims_t, bin_t, cs_t, cover_t = batch(s, idx, size, None)
-        out = net(x, cls)
+        out = forward_mirrored(net, x, cls, mirror)
         loss, _ = loss_fn(out, dims_t, bin_t, cs_t, cover_t)
         losses.append(float(loss) * len(idx))
         n += len(idx)

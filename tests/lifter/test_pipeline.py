@@ -57,7 +57,12 @@ def test_cli_with_detection_files_and_a_trained_checkpoint(dataset, tmp_path):
     assert r.exit_code == 0, r.output
     dt = read_label(tmp_path / "out" / "000000.txt")
     assert len(dt) == 2 and all(o.h > 0 and o.location[2] > 5 for o in dt)
-    assert dt[0].score > dt[1].score  # the detection order survives the lifting
+    # one 3D box per detection, in the detection file's order, scored by the detection's score
+    # times the fit's quality (at most 1)
+    src = read_label(det / "000000.txt")
+    for o, d in zip(dt, src):
+        np.testing.assert_allclose(o.bbox, d.bbox, atol=1e-2)
+        assert 0 < o.score <= d.score + 1e-6
 
 
 def test_missing_detection_file_is_an_empty_frame(dataset, tmp_path):
