@@ -6,7 +6,10 @@ any type (DontCare included) at 2D IoU 0.5: what the detector fires on that is n
 
     .venv/bin/python benchmarks/detector_real.py --data ../shared/kitti_real_dev \
         --weights detector/weights/flexinet_small.pt [--weights OTHER.pt ...] --out runs/det_real \
-        [--blur-sigma 2] [--objects]
+        [--mirror on|off|both] [--blur-sigma 2] [--objects]
+
+`--mirror`: the image read also mirrored (as `testbed detect` does by default), in one pass only,
+or both ways, each weight file's rows side by side.
 """
 
 from __future__ import annotations
@@ -99,6 +102,8 @@ def main() -> None:
     ap.add_argument("--out", required=True, type=Path)
     ap.add_argument("--blur-sigma", type=float, default=0.0,
                     help="diagnosis: Gaussian-blur every image by this many pixels first")
+    ap.add_argument("--mirror", choices=["on", "off", "both"], default="on",
+                    help="read each image also mirrored (on, the default of `testbed detect`), not, or both")
     ap.add_argument("--objects", action="store_true",
                     help="also list every labelled Car and Van with the detection that overlaps it most")
     args = ap.parse_args()
@@ -111,9 +116,12 @@ def main() -> None:
           f"false positives per frame (score >= {FP_SCORE}) |")
     print("|---|---|---|")
     near, objects = [], []
-    for i, w in enumerate(args.weights):
+    modes = {"on": [True], "off": [False], "both": [False, True]}[args.mirror]
+    runs = [(w, m) for w in args.weights for m in modes]
+    for i, (w, mirror) in enumerate(runs):
         pred_dir = args.out / f"pred_{i}"
-        pred = detect_dataset(args.data, pred_dir, w, split=args.split, progress=False)
+        pred = detect_dataset(args.data, pred_dir, w, split=args.split, progress=False, mirror=mirror)
+        w = f"{w} ({'mirrored' if mirror else 'one pass'})"
         strict = evaluate_folders(Path(args.data) / "training" / "label_2", pred_dir, classes=["Car"],
                                   progress=False)
         ap7 = strict.ap["Car"]["2d"]["R40"]

@@ -31,12 +31,17 @@ def save_checkpoint(path: Path, model: FlexiNet, input_size: tuple[int, int], ex
 
 @dataclass
 class Detector:
+    """`mirror`: each image is also read mirrored (left-right), both reads' candidates go through
+    one NMS and each box is scored by the mean of the two reads (`detector.nms.postprocess`;
+    test-time augmentation: the network was trained on mirrored images half the time). It doubles
+    the network's work; `results/detector.md` gives what it buys."""
     model: FlexiNet
     input_size: tuple[int, int]  # network input (w, h)
     classes: tuple[str, ...]
+    mirror: bool = True
 
     @staticmethod
-    def load(weights: str | Path | None = None) -> "Detector":
+    def load(weights: str | Path | None = None, mirror: bool = True) -> "Detector":
         path = Path(weights) if weights else DEFAULT_WEIGHTS
         if not path.is_file():
             raise FileNotFoundError(f"detector weights not found: {path}")
@@ -47,7 +52,7 @@ class Detector:
         model = FlexiNet(ModelConfig.from_dict(ck["model_cfg"]))
         model.load_state_dict(ck["model"])
         model.eval().fuse()
-        return Detector(model, tuple(ck["input_size"]), tuple(ck["classes"]))
+        return Detector(model, tuple(ck["input_size"]), tuple(ck["classes"]), mirror)
 
     @torch.no_grad()
     def detect(self, images: list[np.ndarray], conf_threshold: float = 0.01, iou_threshold: float = 0.6,
@@ -58,7 +63,8 @@ class Detector:
         boxes = [Letterbox.fit(im.shape[1], im.shape[0], *self.input_size) for im in images]
         x = torch.from_numpy(np.stack([lb.apply(im) for lb, im in zip(boxes, images)]))
         x = x.permute(0, 3, 1, 2).float().div_(255)
-        dets = postprocess(self.model.predict_raw(x), conf_threshold, iou_threshold, max_det)
+        dets = postprocess(self._raw(x), conf_threshold, iou_threshold, max_det,
+                           views=2 if self.mirror else 1)
         out = []
         for lb, d in zip(boxes, dets):
             d = d.double().numpy()
@@ -66,6 +72,17 @@ class Detector:
             keep = (d[:, 2] > d[:, 0]) & (d[:, 3] > d[:, 1])
             out.append(d[keep])
         return out
+
+    def _raw(self, x: torch.Tensor) -> torch.Tensor:
+        """Decoded candidates (B, N, 5 + nc) in input pixels; with `mirror`, (B, 2N, 5 + nc): the
+        mirrored pass's boxes mapped back (centre x -> input width - x)."""
+        if not self.mirror:
+            return self.model.predict_raw(x)
+        raw = self.model.predict_raw(torch.cat([x, x.flip(-1)]))
+        n = len(x)
+        back = raw[n:].clone()
+        back[..., 0] = self.input_size[0] - back[..., 0]
+        return torch.cat([raw[:n], back], 1)
 
     def to_objects(self, det: np.ndarray) -> list[Object3D]:
         """KITTI result rows: type, 2D box and score; the unknown 3D fields are the format's
@@ -79,9 +96,9 @@ class Detector:
 def detect_dataset(root: str | Path, out_dir: str | Path, weights: str | Path | None = None,
                    split: str | None = "val", part: str = "training", batch: int = 4,
                    conf_threshold: float = 0.01, iou_threshold: float = 0.6,
-                   progress: bool = True) -> dict[str, list[Object3D]]:
+                   progress: bool = True, mirror: bool = True) -> dict[str, list[Object3D]]:
     """Detect every frame of a split and write one KITTI result file per frame (empty when none)."""
-    det = Detector.load(weights)
+    det = Detector.load(weights, mirror)
     ds = KittiDataset(root, part=part)
     ids = ds.ids(split)
     out_dir = Path(out_dir)

@@ -132,6 +132,23 @@ def test_postprocess_scores_and_boxes():
     np.testing.assert_allclose(out[0].numpy(), [40, 35, 60, 45, 0.72, 1], atol=1e-6)
 
 
+def test_postprocess_over_two_views_scores_each_box_by_the_views_mean():
+    # view 0: a car at x 40-60 (0.8) and a car at x 200-220 (0.9); view 1: the first car again,
+    # 1 px to the right (0.6), a near duplicate of it (0.5), and a pedestrian on the second car (0.4)
+    def row(cx, score, cls):
+        probs = [0.0, 0.0, 0.0]
+        probs[cls] = 1.0
+        return [cx, 40, 20, 10, score, *probs]
+    pred = torch.tensor([[row(50, 0.8, 0), row(210, 0.9, 0), row(0, 0.0, 0),
+                          row(51, 0.6, 0), row(50.5, 0.5, 0), row(210, 0.4, 1)]])
+    out = postprocess(pred, conf_threshold=0.3, iou_threshold=0.5, views=2)[0].numpy()
+    # the first car (0.8 + 0.6) / 2; the second car and the pedestrian, one view each, half
+    np.testing.assert_allclose(out, [[40, 35, 60, 45, 0.7, 0], [200, 35, 220, 45, 0.45, 0],
+                                     [200, 35, 220, 45, 0.2, 1]], atol=1e-6)
+    one = postprocess(pred, conf_threshold=0.3, iou_threshold=0.5)[0].numpy()
+    np.testing.assert_allclose(one[:, 4], [0.9, 0.8, 0.4], atol=1e-6)  # one view: scores as they are
+
+
 def test_box_iou_matrix():
     a = torch.tensor([[0.0, 0, 2, 2], [0, 0, 1, 1]])
     b = torch.tensor([[1.0, 1, 3, 3], [5, 5, 6, 6]])

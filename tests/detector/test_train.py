@@ -1,4 +1,6 @@
 """End to end on a toy KITTI folder: a tiny run overfits, resume is exact, detect writes KITTI results."""
+from pathlib import Path
+
 import numpy as np
 import pytest
 import torch
@@ -61,6 +63,15 @@ def test_detect_cli_writes_kitti_results(overfit_run, tmp_path):
     objs = read_label(files[0])
     assert all(o.score is not None and 0 < o.score <= 1 for o in objs)
     assert all(0 <= o.bbox[0] < o.bbox[2] <= 255 and 0 <= o.bbox[1] < o.bbox[3] <= 95 for o in objs)
+    # --no-mirror: one pass, as Detector(mirror=False) gives it
+    res = CliRunner().invoke(cli, ["detect", "--data", str(root), "--out", str(tmp_path / "single"),
+                                   "--weights", str(run / "weights.pt"), "--split", "train", "--conf", "0.3",
+                                   "--no-mirror"])
+    assert res.exit_code == 0, res.output
+    fid = files[0].stem
+    d = Detector.load(run / "weights.pt", mirror=False).detect([KittiDataset(root).image(fid)], 0.3)[0]
+    single = read_label(tmp_path / "single" / f"{fid}.txt")
+    np.testing.assert_allclose([o.bbox for o in single], d[:, :4], atol=1e-2)
 
 
 def test_resume_is_exact(tmp_path):
@@ -107,3 +118,35 @@ def test_shipped_weights_load_and_stay_small():
     assert det.input_size[0] % 32 == 0 and det.input_size[1] % 32 == 0
     img = np.full((375, 1242, 3), 114, np.uint8)
     assert det.detect([img], conf_threshold=0.5)[0].shape[1] == 6
+
+
+def test_mirrored_inference_reads_an_image_and_its_mirror_alike(tmp_path):
+    """With `mirror`, both passes' candidates share one NMS, so a mirrored street frame gets the
+    mirror images of the same boxes with the same scores (1242 px letterboxes to the full input
+    width: no padding breaks the symmetry); a single pass is not symmetric."""
+    from simgen.generate import generate
+    from simgen.spec import load_spec
+    spec = load_spec(Path(__file__).resolve().parents[2] / "scenes/quickstart.yaml")
+    generate(spec.model_copy(update={"lidar": None}), tmp_path / "q", frames=1, seed=3)
+    ds = KittiDataset(tmp_path / "q")
+    img = ds.image(ds.ids(None)[0])
+
+    def boxes(det, flip):
+        d = det.detect([img[:, ::-1].copy() if flip else img], conf_threshold=0.05)[0]
+        if flip:
+            d[:, [0, 2]] = 1242 - d[:, [2, 0]]
+        return d
+
+    def paired(a, b):
+        """Each box of a, its best match in b (same class): IoU and score difference."""
+        iou = iou_2d(a[:, :4], b[:, :4]) * (a[:, None, 5] == b[None, :, 5])
+        j = iou.argmax(1)
+        return iou[np.arange(len(a)), j], np.abs(a[:, 4] - b[j, 4])
+
+    a, b = boxes(Detector.load(), False), boxes(Detector.load(), True)
+    assert len(a) >= 10 and len(a) == len(b)
+    iou, ds = paired(a, b)
+    assert iou.min() > 0.99 and ds.max() < 1e-3  # rounding: the letterbox resizes uint8 pixels
+    single = Detector.load(mirror=False)
+    iou, ds = paired(boxes(single, False), boxes(single, True))
+    assert iou.min() < 0.9 or ds.max() > 1e-2

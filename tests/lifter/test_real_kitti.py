@@ -94,11 +94,12 @@ def test_lifting_real_frames_holds_its_floor(lifted, method, priors):
 
 
 # The whole chain on the real frames: the shipped detector's boxes, lifted by `fit`, evaluated.
-# Measured with detector stage 13 and the size/orientation network of stage 12 (2026-11-26, stop
-# 27; `benchmarks/detector_real.py`, results/detector.md): 21 of the 42 labelled Cars and Vans
-# overlapped at 2D IoU 0.5 by a Car detection of score 0.3 (stage 12: 18, stage 11: 12), 5.9 false
-# positives a frame (5.6), 5 Cars within 3D IoU 0.5 of a lifted box (4). Floors a few cars under.
-DETECTED_AT_05, FALSE_POSITIVES_A_FRAME, LIFTED_AT_05 = 17, 6.5, 3
+# Measured with detector stage 13 reading each image and its mirror, and the size/orientation
+# network of stage 12 on each crop and its mirror (2026-11-26, stop 29; `benchmarks/detector_real.py`,
+# results/detector.md): 20 of the 42 labelled Cars and Vans overlapped at 2D IoU 0.5 by a Car
+# detection of score 0.3 (one pass: 21; stage 12: 18, stage 11: 12), 5.1 false positives a frame
+# (one pass: 5.9), 8 Cars within 3D IoU 0.5 of a lifted box (one pass: 6). Floors a few cars under.
+DETECTED_AT_05, FALSE_POSITIVES_A_FRAME, LIFTED_AT_05 = 17, 6.0, 5
 
 
 def test_detect_lift_evaluate_on_real_frames(tmp_path):
