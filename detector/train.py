@@ -143,9 +143,11 @@ def fit_anchors(data: DetectionData, seed: int) -> tuple[tuple[float, float], ..
 
 def evaluate_model(model: FlexiNet, input_size: tuple[int, int], root: str, split: str | None,
                    batch: int = 8, progress: bool = False):
-    """2D AP of a model on a split through kitti.eval (scores down to 0.001, as AP needs)."""
+    """2D AP of a model on a split through kitti.eval (scores down to 0.001, as AP needs), each
+    image read once (as training runs logged it before `testbed detect` read images mirrored too:
+    a documented run still writes the same history)."""
     from kitti.eval import evaluate
-    det = Detector(model.eval(), input_size, CLASSES)
+    det = Detector(model.eval(), input_size, CLASSES, mirror=False)
     ds = KittiDataset(root)
     ids = ds.ids(split)
     gt, dt = {}, {}

@@ -96,7 +96,8 @@ def class_means(s: Samples) -> list[list[float]]:
 def evaluate(net: SizeOrientationNet, s: Samples, size: int, bs: int = 128,
              mirror: bool = False) -> dict[str, float]:
     """Loss, size and alpha errors on samples; `mirror` averages each crop with its mirror image
-    as inference does (`lifter.predictor.forward_mirrored`)."""
+    as inference does (`lifter.predictor.forward_mirrored`). Training validates without it, as it
+    did when the shipped weights were trained: their documented commands pick the same epoch."""
     net.eval()
     losses, dims_err, ang_err, n = [], [], [], 0
     for start in range(0, len(s.cls), bs):
