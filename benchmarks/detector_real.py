@@ -122,8 +122,9 @@ def main() -> None:
         pred_dir = args.out / f"pred_{i}"
         pred = detect_dataset(args.data, pred_dir, w, split=args.split, progress=False, mirror=mirror)
         w = f"{w} ({'mirrored' if mirror else 'one pass'})"
-        strict = evaluate_folders(Path(args.data) / "training" / "label_2", pred_dir, classes=["Car"],
-                                  progress=False)
+        split = Path(args.data) / "ImageSets" / f"{args.split}.txt" if args.split else None
+        strict = evaluate_folders(Path(args.data) / "training" / "label_2", pred_dir, split,
+                                  classes=["Car"], progress=False)
         ap7 = strict.ap["Car"]["2d"]["R40"]
         fp = false_positives(ds, ids, pred)
         print(f"| {w} | {' / '.join(f'{a:.1f}' for a in ap7)} | {fp.mean():.1f} (median {np.median(fp):.0f}) |")
