@@ -107,10 +107,11 @@ def lift_frame(method: str, boxes: list[Box2D], priors: list[Prior], calib: Cali
 
 def lift_dataset(data: str | Path, detections: Path | None, method: str, out: str | Path,
                  split: str | None, priors: str = "net", weights: str | Path | None = None,
-                 progress: bool = True) -> int:
+                 progress: bool = True, mirror: bool = True) -> int:
     """Write out/<id>.txt for every frame of the split; returns the number of 3D boxes written.
 
-    `detections`: a folder of detection result files, or None for the labels' boxes (oracle)."""
+    `detections`: a folder of detection result files, or None for the labels' boxes (oracle).
+    `mirror`: the size/orientation network also reads each crop mirrored (`lifter.predictor`)."""
     m = get_method(method)
     ds = KittiDataset(data)
     ids = ds.ids(split)
@@ -119,7 +120,7 @@ def lift_dataset(data: str | Path, detections: Path | None, method: str, out: st
         raise KittiFormatError("detection folder not found", det_dir)
     if priors == "net":
         from .predictor import DEFAULT_WEIGHTS, Predictor
-        predictor = Predictor(weights or DEFAULT_WEIGHTS)
+        predictor = Predictor(weights or DEFAULT_WEIGHTS, mirror=mirror)
     elif priors != "truth":
         raise ValueError(f"unknown priors '{priors}' (net or truth)")
     out = Path(out)

@@ -24,15 +24,18 @@ from lifter.methods import METHODS
               help="Size and orientation from the network, or from the labels (ablation; --boxes gt).")
 @click.option("--weights", type=click.Path(exists=True, dir_okay=False, path_type=Path),
               help="Size/orientation checkpoint [default: the shipped lifter/weights].")
+@click.option("--mirror/--no-mirror", default=True, show_default=True,
+              help="The network reads each crop and its mirror image (twice its work).")
 def lift(data: Path, boxes: str, method: str, split: str | None, out: Path, priors: str,
-         weights: Path | None) -> None:
+         weights: Path | None, mirror: bool) -> None:
     """Lift the 2D boxes of every frame of DATA's split to 3D with METHOD."""
     from kitti.errors import KittiFormatError
     from lifter.pipeline import lift_dataset
 
     try:
         detections = None if boxes == "gt" else Path(boxes)
-        n = lift_dataset(data, detections, method, out, split, priors=priors, weights=weights)
+        n = lift_dataset(data, detections, method, out, split, priors=priors, weights=weights,
+                         mirror=mirror)
     except (KittiFormatError, ValueError, FileNotFoundError) as e:
         raise click.ClickException(str(e)) from None
     click.echo(f"{n} 3D boxes written to {out}")

@@ -65,6 +65,25 @@ def test_cli_with_detection_files_and_a_trained_checkpoint(dataset, tmp_path):
         assert 0 < o.score <= d.score + 1e-6
 
 
+def test_lift_passes_mirror_to_the_network(dataset, tmp_path, monkeypatch):
+    """`testbed lift` reads crops mirrored too unless --no-mirror (the network's outputs:
+    tests/lifter/test_network.py)."""
+    import lifter.predictor
+    seen = []
+
+    class Recording(lifter.predictor.Predictor):
+        def __init__(self, *a, mirror=True, **kw):
+            seen.append(mirror)
+            super().__init__(*a, mirror=mirror, **kw)
+
+    monkeypatch.setattr(lifter.predictor, "Predictor", Recording)
+    for flags in ([], ["--no-mirror"], ["--mirror"]):
+        r = CliRunner().invoke(cli, ["lift", "--data", str(dataset), "--boxes", "gt", "--method", "fit",
+                                     "--split", "val", "--out", str(tmp_path / "o"), *flags])
+        assert r.exit_code == 0, r.output
+    assert seen == [True, False, True]
+
+
 def test_missing_detection_file_is_an_empty_frame(dataset, tmp_path):
     # (this pinned the opposite before: a frame without a detection file was an error; a detector
     # may write only the frames where it found something, and the evaluation reads a missing
