@@ -39,12 +39,14 @@ pytestmark = pytest.mark.skipif(not (REAL / "training" / "label_2").is_dir(),
 # within 0.5, one fewer): the mono-net floor at 0.5 follows the measurement again, a car under.
 # With the network fine-tuned on the textured cars (2026-11-26, evening; real crops' alpha error
 # 30 -> 13 deg): fit net 31.7 / 31.7, 22 / 22; mono net 0.0 / 10.3, 10 / 2. Floors raised to
-# follow, a car or two under.
+# follow, a car or two under. With the network reading each crop and its mirror (2026-11-26,
+# stop 29; real crops' alpha error 12.9 -> 9.4 deg): fit net unchanged; mono net 2.3 / 13.1,
+# 11 / 4. Its floors follow, a car or two under.
 FLOORS = {
     ("fit", "truth"): (25.0, 27.5, 20, 19),
     ("fit", "net"): (27.5, 27.5, 20, 20),
     ("mono", "truth"): (2.5, 10.0, 9, 3),
-    ("mono", "net"): (0.0, 7.5, 8, 1),
+    ("mono", "net"): (0.0, 10.0, 9, 2),
     ("frustum", "truth"): (0.0, 5.0, 7, 2),
     ("roadside", "truth"): (0.0, 5.0, 7, 2),
 }
