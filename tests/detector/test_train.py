@@ -145,8 +145,8 @@ def test_mirrored_inference_reads_an_image_and_its_mirror_alike(tmp_path):
 
     a, b = boxes(Detector.load(), False), boxes(Detector.load(), True)
     assert len(a) >= 10 and len(a) == len(b)
-    iou, ds = paired(a, b)
-    assert iou.min() > 0.99 and ds.max() < 1e-3  # rounding: the letterbox resizes uint8 pixels
+    iou, dscore = paired(a, b)
+    assert iou.min() > 0.99 and dscore.max() < 1e-3  # rounding: the letterbox resizes uint8 pixels
     single = Detector.load(mirror=False)
-    iou, ds = paired(boxes(single, False), boxes(single, True))
-    assert iou.min() < 0.9 or ds.max() > 1e-2
+    iou, dscore = paired(boxes(single, False), boxes(single, True))
+    assert iou.min() < 0.9 or dscore.max() > 1e-2
