@@ -100,7 +100,9 @@ def test_lifting_real_frames_holds_its_floor(lifted, method, priors):
 # network of stage 12 on each crop and its mirror (2026-11-26, stop 29; `benchmarks/detector_real.py`,
 # results/detector.md): 20 of the 42 labelled Cars and Vans overlapped at 2D IoU 0.5 by a Car
 # detection of score 0.3 (one pass: 21; stage 12: 18, stage 11: 12), 5.1 false positives a frame
-# (one pass: 5.9), 8 Cars within 3D IoU 0.5 of a lifted box (one pass: 6). Floors a few cars under.
+# (one pass: 5.9), 8 Cars within 3D IoU 0.5 of a lifted box (one pass: 6). Detector stage 14 (the
+# same stop, trained with denser traffic): 22 found, 5.6 false positives a frame, 6 lifted.
+# Floors a few cars under.
 DETECTED_AT_05, FALSE_POSITIVES_A_FRAME, LIFTED_AT_05 = 17, 6.0, 5
 
 
