@@ -21,8 +21,10 @@ _DATASET = click.Path(exists=True, file_okay=False, path_type=Path)
               help="Tolerance YAML [default: testbed/fidelity/tolerances.yaml].")
 @click.option("--workers", type=click.IntRange(min=1), default=min(2, os.cpu_count() or 1),
               show_default=True, help="Worker processes (1: in this process).")
+@click.option("--draws", type=click.IntRange(min=0), default=1000, show_default=True,
+              help="Bootstrap draws of both sides' frames behind each verdict's 95 % interval (0: none).")
 def fidelity(sim: Path, real: Path, out: Path, split: str | None, frames: int | None,
-             tolerances: Path | None, workers: int) -> None:
+             tolerances: Path | None, workers: int, draws: int) -> None:
     """Compare the LiDAR scans, images and labels of SIM with those of REAL: medians per
     statistic, relative differences with pass/fail verdicts, and overlaid histograms."""
     from kitti.errors import KittiFormatError
@@ -35,10 +37,12 @@ def fidelity(sim: Path, real: Path, out: Path, split: str | None, frames: int | 
         with LocalBackend(workers) as backend:
             sim_stats = compute_stats(sim, split, frames, backend)
             real_stats = compute_stats(real, split, frames, backend)
-        comparison = compare(sim_stats, real_stats, tol)
+        comparison = compare(sim_stats, real_stats, tol, draws)
         write_report(comparison, out)
     except (KittiFormatError, ValueError) as e:
         raise click.ClickException(str(e)) from None
     counts = {v: sum(r.verdict == v for r in comparison.rows) for v in ("pass", "fail", "n/a")}
-    click.echo(f"{counts['pass']} pass, {counts['fail']} fail, {counts['n/a']} n/a; "
-               f"wrote {out / 'report.md'}")
+    undecided = sum(r.decided is False for r in comparison.rows)
+    click.echo(f"{counts['pass']} pass, {counts['fail']} fail, {counts['n/a']} n/a"
+               + (f" ({undecided} undecided by these frames)" if draws else "")
+               + f"; wrote {out / 'report.md'}")

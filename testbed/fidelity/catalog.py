@@ -5,7 +5,6 @@ their median over objects."""
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass
 from typing import Callable
 
@@ -38,15 +37,23 @@ def med(key: str) -> Callable[[DatasetStats], float]:
     return lambda d: _median(d.get(key))
 
 
+def column_nanmedians(rows: np.ndarray) -> np.ndarray:
+    """np.nanmedian(rows, axis=0), the same numbers, by one sort (NaN sorts last): numpy's own
+    runs a Python loop per column from 600 rows on, which the bootstrap's draws would repeat."""
+    s = np.sort(rows, axis=0)
+    n = np.count_nonzero(~np.isnan(rows), axis=0)
+    cols = np.arange(rows.shape[1])
+    return (s[np.maximum(n - 1, 0) // 2, cols] + s[n // 2, cols]) / 2  # NaN where n == 0
+
+
 def ring_median(key: str, pick: Callable[[np.ndarray], float]) -> Callable[[DatasetStats], float]:
-    """Median over frames per ring, then `pick` over the 64 rings."""
+    """Median over frames per ring, then `pick` over the 64 rings (a ring empty in every frame
+    stays NaN)."""
     def value(d: DatasetStats) -> float:
         rows = d.rows.get(key)
         if rows is None or not len(rows):
             return float("nan")
-        with warnings.catch_warnings():  # a ring empty in every frame stays NaN
-            warnings.simplefilter("ignore", RuntimeWarning)
-            return float(pick(np.nanmedian(rows, axis=0)))
+        return float(pick(column_nanmedians(rows)))
     return value
 
 

@@ -1,5 +1,6 @@
-"""Sim against real, statistic by statistic: the relative difference (sim - real) / |real| and a
-pass/fail verdict against a per-statistic tolerance from tolerances.yaml."""
+"""Sim against real, statistic by statistic: the relative difference (sim - real) / |real|, a
+pass/fail verdict against a per-statistic tolerance from tolerances.yaml, and whether the frames
+at hand decide that verdict (bootstrap.py)."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ from pathlib import Path
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
+from .bootstrap import DRAWS, Interval, intervals, relative_difference
 from .catalog import STAT_KEYS, STATS
 from .stats import DatasetStats
 
@@ -68,6 +70,14 @@ class Row:
     rel_diff: float | None  # None: real is 0 and sim is not
     tolerance: float
     verdict: str            # pass, fail, or n/a (a group absent or no data)
+    interval: Interval | None = None  # 95 % bootstrap interval of rel_diff (frames resampled)
+
+    @property
+    def decided(self) -> bool | None:
+        """Whether the whole interval gives the verdict (None: no interval, or no verdict)."""
+        if self.interval is None or self.verdict == "n/a":
+            return None
+        return self.interval.decides(self.verdict, self.tolerance)
 
 
 @dataclass
@@ -76,23 +86,28 @@ class Comparison:
     real: DatasetStats
     tolerances: Tolerances
     rows: list[Row]
+    draws: int = 0  # bootstrap draws behind the rows' intervals
 
 
 def verdict(sim: float, real: float, tol: float) -> tuple[float | None, str]:
-    """(relative difference, verdict); the verdict passes up to and including the tolerance."""
-    if math.isnan(sim) or math.isnan(real):
-        return float("nan"), "n/a"
-    if real == 0:
-        return (0.0, "pass") if sim == 0 else (None, "fail")
-    rel = (sim - real) / abs(real)
+    """(relative difference, verdict); the verdict passes up to and including the tolerance.
+    The difference is None where only real is 0 (a fail)."""
+    rel = relative_difference(sim, real)
+    if math.isnan(rel):
+        return rel, "n/a"
+    if math.isinf(rel):
+        return None, "fail"
     return rel, "pass" if abs(rel) <= tol else "fail"
 
 
-def compare(sim: DatasetStats, real: DatasetStats, tolerances: Tolerances | None = None) -> Comparison:
+def compare(sim: DatasetStats, real: DatasetStats, tolerances: Tolerances | None = None,
+            draws: int = DRAWS) -> Comparison:
+    """Every statistic's row; `draws` bootstrap draws give each its interval (0: none)."""
     tolerances = tolerances or load_tolerances()
+    bounds = intervals(sim, real, draws)
     rows = []
     for s in STATS:
         a, b = s.value(sim), s.value(real)
         rel, v = verdict(a, b, tolerances.of(s.key))
-        rows.append(Row(s.key, s.label, s.unit, a, b, rel, tolerances.of(s.key), v))
-    return Comparison(sim, real, tolerances, rows)
+        rows.append(Row(s.key, s.label, s.unit, a, b, rel, tolerances.of(s.key), v, bounds[s.key]))
+    return Comparison(sim, real, tolerances, rows, draws)

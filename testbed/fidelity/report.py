@@ -12,6 +12,7 @@ import numpy as np
 
 from kitti.io import atomic_write_text
 
+from .bootstrap import LEVEL, SEED
 from .compare import Comparison, Row
 from .images import CANNY, NEAR_CAR_PX
 from .labels import CLASSES, KITTI_TRAINING_FRAMES, KITTI_TRAINING_LABELS
@@ -43,6 +44,11 @@ NOTES = f"""\
   look is read from the grey image inside its 2D box (sides rounded to pixel indices).
 - Relative difference = (sim - real) / |real|; a statistic passes when its magnitude is at most the
   tolerance.
+- 95 % interval: both datasets' frames resampled with replacement (a frame's objects travel with
+  it), every statistic recomputed, the draws above with a fixed seed; the central 95 % of the
+  relative differences (`testbed.fidelity.bootstrap`). A verdict is decided when the whole
+  interval lies on its side of the tolerance, undecided when more frames like these could turn
+  it; n/a where the statistic has no value in more than 5 % of the draws (too few objects).
 """
 
 
@@ -56,14 +62,22 @@ def _fmt(x: float) -> str:
     return f"{x:,.0f}" if abs(x) >= 1000 else f"{x:.4g}"
 
 
+def _rel(x: float | None) -> str:
+    if x is None or math.isnan(x):
+        return "n/a"
+    return f"{x:+.1%}" if math.isfinite(x) else ("+inf" if x > 0 else "-inf")
+
+
 def _table(rows: list[Row]) -> list[str]:
-    out = ["| statistic | sim | real | relative difference | verdict |", "|---|---:|---:|---:|---|"]
+    out = ["| statistic | sim | real | relative difference | 95 % interval | verdict |",
+           "|---|---:|---:|---:|---:|---|"]
     for r in rows:
         label = (f"{r.label} ({r.unit})" if r.unit else r.label).replace("|", "\\|")
-        rel = "n/a" if r.rel_diff is None or math.isnan(r.rel_diff) else f"{r.rel_diff:+.1%}"
+        interval = "n/a" if r.interval is None else f"{_rel(r.interval.lo)} to {_rel(r.interval.hi)}"
         verdict = {"fail": "**fail**"}.get(r.verdict, r.verdict)
-        out.append(f"| {label} `{r.key}` | {_fmt(r.sim)} | {_fmt(r.real)} | {rel} | "
-                   f"{verdict} (±{r.tolerance:.0%}) |")
+        decided = {True: "", False: ", undecided", None: ""}[r.decided]
+        out.append(f"| {label} `{r.key}` | {_fmt(r.sim)} | {_fmt(r.real)} | {_rel(r.rel_diff)} | "
+                   f"{interval} | {verdict} (±{r.tolerance:.0%}){decided} |")
     return out
 
 
@@ -88,7 +102,11 @@ def to_json(comp: Comparison) -> dict:
         "tolerances": comp.tolerances.model_dump(),
         "statistics": {r.key: {"label": r.label, "unit": r.unit, "sim": _num(r.sim),
                                "real": _num(r.real), "rel_diff": _num(r.rel_diff),
-                               "tolerance": r.tolerance, "verdict": r.verdict} for r in comp.rows},
+                               "interval": None if r.interval is None
+                               else [_num(r.interval.lo), _num(r.interval.hi)],
+                               "tolerance": r.tolerance, "verdict": r.verdict, "decided": r.decided}
+                       for r in comp.rows},
+        "bootstrap": {"draws": comp.draws, "level": LEVEL, "seed": SEED},
         "histograms": {key: {"edges": [_num(e) for e in comp.sim.hists[key].edges],
                              **{n: [_num(c) for c in d.hists[key].normalised()]
                                 for n, d in sides.items()}} for key in comp.sim.hists},
@@ -105,6 +123,8 @@ def to_json(comp: Comparison) -> dict:
 def _header(comp: Comparison) -> list[str]:
     sim, real = comp.sim, comp.real
     counts = {v: sum(r.verdict == v for r in comp.rows) for v in ("pass", "fail", "n/a")}
+    decided = {v: sum(r.verdict == v and r.decided is True for r in comp.rows) for v in ("pass", "fail")}
+    undecided = sum(r.decided is False for r in comp.rows)
     skipped = [f"- {n} {fid}: {err}" for n, d in (("sim", sim), ("real", real))
                for fid, err in d.skipped]
     return [
@@ -115,7 +135,10 @@ def _header(comp: Comparison) -> list[str]:
         f"{real.split or 'every frame with an image'} |",
         f"| frames read | {len(sim.frames)} | {len(real.frames)} |", "",
         f"Verdicts: {counts['pass']} pass, {counts['fail']} fail, {counts['n/a']} n/a "
-        f"(relative tolerance, default ±{comp.tolerances.default:.0%}).", "",
+        f"(relative tolerance, default ±{comp.tolerances.default:.0%}).",
+        *([f"Decided by these frames (the whole {LEVEL:.0%} bootstrap interval, {comp.draws} draws, on "
+           f"the verdict's side of the tolerance): {decided['pass']} pass, {decided['fail']} fail; "
+           f"{undecided} undecided."] if comp.draws else []), "",
         f"frames skipped: {len(sim.skipped) + len(real.skipped)}", *skipped, ""]
 
 

@@ -26,14 +26,6 @@ from testbed.fidelity.stats import Acc
 from testbed.fidelity.compare import verdict
 
 ROOT = Path(__file__).resolve().parents[2]
-REAL = ROOT.parent / "shared" / "kitti_real_dev"  # the real dev frames beside the repository
-
-
-@pytest.fixture(scope="module")
-def real_root() -> Path:
-    if not (REAL / "training").is_dir():
-        pytest.skip(f"real KITTI frames not found at {REAL}")
-    return REAL
 
 
 @pytest.fixture(scope="module")
@@ -131,6 +123,11 @@ def test_sim_against_real_writes_every_number_and_the_same_bytes_twice(sim_vs_re
     assert row["rel_diff"] == pytest.approx((row["sim"] - row["real"]) / row["real"], rel=1e-3)
     report = (tmp_path / "a/report.md").read_text()
     assert "frames skipped: 0" in report and "`lidar.points_per_sweep`" in report
+    assert doc["bootstrap"]["draws"] == 1000 and "| 95 % interval |" in report
+    lo, hi = row["interval"]
+    assert lo <= row["rel_diff"] <= hi and row["decided"] in (True, False)
+    undecided = sum(r["decided"] is False for r in doc["statistics"].values())
+    assert f"; {undecided} undecided." in report and report.count(", undecided |") == undecided
 
 
 @pytest.mark.parametrize("kind", ["png", "bin", "label"])
@@ -202,6 +199,12 @@ def test_the_command_writes_the_report_and_turns_a_bad_tolerance_file_into_a_mes
     res = CliRunner().invoke(fidelity, [*args, "--out", str(tmp_path / "out")])
     assert res.exit_code == 0, res.output
     assert "0 fail" in res.output and (tmp_path / "out/report.md").exists()
+    # one frame against itself: every draw is that frame, so every interval is [0, 0]
+    assert "(0 undecided by these frames)" in res.output
+    res = CliRunner().invoke(fidelity, [*args, "--out", str(tmp_path / "o0"), "--draws", "0"])
+    doc = json.loads((tmp_path / "o0/fidelity.json").read_text())
+    assert res.exit_code == 0 and doc["bootstrap"]["draws"] == 0
+    assert all(r["interval"] is None and r["decided"] is None for r in doc["statistics"].values())
     bad = tmp_path / "tol.yaml"
     bad.write_text("statistics: {nope: 0.1}\n")
     res = CliRunner().invoke(fidelity, [*args, "--out", str(tmp_path / "o2"), "--tolerances", str(bad)])
@@ -226,7 +229,7 @@ def test_the_look_of_a_near_whole_car_by_hand(real_root):
     """Frame 001206: one Car is near (175 px tall), untruncated and fully visible; the others are
     truncated, occluded, Vans or a Truck. Its box's pixels, by hand: columns 551-736, rows 186-361."""
     t = real_root / "training"
-    acc = Acc()
+    acc = Acc(frames=["001206"])
     grey = cv2.cvtColor(cv2.imread(str(t / "image_2/001206.png")), cv2.COLOR_BGR2GRAY)
     car_look_stats(acc, grey, read_label(t / "label_2/001206.txt"))
     rgb = iio.imread(t / "image_2/001206.png")[..., :3].astype(np.float64)

@@ -1,0 +1,74 @@
+"""The bootstrap behind each fidelity verdict: frames keep their values through chunks and
+resampling, an interval computed by hand, and the real dev frames against themselves."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from testbed.fidelity import compare, compute_stats
+from testbed.fidelity.bootstrap import Interval, intervals
+from testbed.fidelity.catalog import Stat, med
+from testbed.fidelity.stats import Acc, DatasetStats, merge
+
+
+def _chunks() -> list[Acc]:
+    a = Acc()
+    a.frames.append("a")
+    a.put("x", [1.0, 2.0])
+    a.row("r", [1.0, 1.0])
+    a.frames.append("b")
+    a.put("x", 3.0)
+    b = Acc()
+    b.frames.append("c")
+    b.put("x", [4.0, 5.0, 6.0])
+    b.row("r", [2.0, 2.0])
+    return [a, b]
+
+
+def test_values_keep_their_frame_through_chunks_and_resampling():
+    d = merge("root", None, {}, _chunks())
+    assert d.value_frames["x"].tolist() == [0, 0, 1, 2, 2, 2] and d.row_frames["r"].tolist() == [0, 2]
+    same = d.resample(np.arange(3))
+    assert same.get("x").tolist() == d.get("x").tolist() and same.rows["r"].tolist() == d.rows["r"].tolist()
+    draw = d.resample(np.array([2, 0, 0, 1]))
+    assert draw.frames == ["c", "a", "a", "b"]
+    assert draw.get("x").tolist() == [4.0, 5.0, 6.0, 1.0, 2.0, 1.0, 2.0, 3.0]
+    assert draw.rows["r"].tolist() == [[2.0, 2.0], [1.0, 1.0], [1.0, 1.0]]
+    assert draw.value_frames["x"].tolist() == [0, 0, 0, 1, 1, 2, 2, 3] and draw.row_frames["r"].tolist() == [0, 1, 2]
+    assert draw.resample(np.array([3])).get("x").tolist() == [3.0]  # a draw draws again
+    with pytest.raises(RuntimeError, match="before its frame"):
+        Acc().put("x", 1.0)
+
+
+def _one(values: list[float]) -> DatasetStats:
+    n = len(values)
+    return DatasetStats("x", None, [str(i) for i in range(n)], [], {"images": True},
+                        {"images.grey_mean": np.array(values)}, {}, {},
+                        {"images.grey_mean": np.arange(n)}, {})
+
+
+def test_an_interval_by_hand():
+    """Real frames 1 and 3, one sim frame 2: a draw's real median is 1, 2 or 3 (a quarter, a half,
+    a quarter of the draws), so the difference is +100 %, 0 or -33 %: the verdict (0, pass) is
+    undecided at +-15 %. Real 1.0 and 1.1 against 2: every draw fails, +82 % to +100 %."""
+    stat = (Stat("images.grey_mean", "grey", "", med("images.grey_mean")),)
+    (wide,) = intervals(_one([2.0]), _one([1.0, 3.0]), stats=stat).values()
+    assert wide == Interval(pytest.approx(-1 / 3), 1.0)
+    assert not wide.decides("pass", 0.15) and wide.decides("pass", 1.0)
+    (far,) = intervals(_one([2.0]), _one([1.0, 1.1]), stats=stat).values()
+    assert far == Interval(pytest.approx(0.9 / 1.1), 1.0) and far.decides("fail", 0.15)
+    assert not far.decides("fail", 0.9) and not far.decides("pass", 0.15)
+    assert intervals(_one([2.0]), _one([1.0]), draws=0, stats=stat) == {"images.grey_mean": None}
+
+
+def test_the_real_dev_frames_against_themselves(real_root):
+    """Every verdict passes at 0; the points per sweep (115k +- a few %) are decided, the share of
+    ground returns left of the sensor (about 0.3 in six frames, 1.0 in four) is not: eleven frames
+    cannot tell a median of 0.36 from one of 0.6."""
+    real = compute_stats(real_root)
+    rows = {r.key: r for r in compare(real, real).rows}
+    assert all(r.rel_diff == 0 and r.verdict == "pass" for r in rows.values() if r.verdict != "n/a")
+    assert rows["lidar.points_per_sweep"].decided is True
+    left = rows["lidar.near_ground_share_left"]
+    assert left.decided is False and left.interval.hi > 0.5 and left.interval.lo < -0.15
