@@ -23,6 +23,7 @@ from detector.augment import pairwise_iou
 from detector.infer import detect_dataset
 from kitti.dataset import KittiDataset
 from kitti.eval import evaluate_folders
+from kitti.eval.bootstrap import DRAWS, bootstrap_ap
 
 FP_SCORE, FP_IOU = 0.3, 0.5
 
@@ -94,6 +95,22 @@ def _blur_images(sigma: float) -> None:
     KittiDataset.image = lambda self, fid: cv2.GaussianBlur(read(self, fid), (0, 0), sigma)
 
 
+def interval_rows(ds: KittiDataset, ids: list[str], preds: dict[str, dict]) -> list[str]:
+    """Each run's moderate Car AP with its 95 % interval over draws of the frames, and the paired
+    interval of its difference to the first run (kitti.eval.bootstrap)."""
+    draws = bootstrap_ap({fid: ds.labels(fid) for fid in ids}, preds)["Car", "2d", False]
+    first = draws.names[0]
+    rows = [f"Car 2D AP|R40 moderate over {DRAWS} bootstrap draws of the {len(ids)} frames (a frame's "
+            f"labels and detections together): its 95 % interval, and the paired 95 % interval of "
+            f"its difference to {first}:", "",
+            "| weights | 95 % interval | minus the first run |", "|---|---|---|"]
+    for name in draws.names:
+        lo, hi = draws.interval(name)
+        diff = "" if name == first else "{:+.1f} to {:+.1f}".format(*draws.difference(name, first))
+        rows.append(f"| {name} | {lo:.1f} to {hi:.1f} | {diff} |")
+    return rows
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--data", required=True)
@@ -115,7 +132,7 @@ def main() -> None:
     print("| weights | Car 2D AP\\|R40 @0.7 (e / m / h) | "
           f"false positives per frame (score >= {FP_SCORE}) |")
     print("|---|---|---|")
-    near, objects = [], []
+    near, objects, preds = [], [], {}
     modes = {"on": [True], "off": [False], "both": [False, True]}[args.mirror]
     runs = [(w, m) for w in args.weights for m in modes]
     for i, (w, mirror) in enumerate(runs):
@@ -129,8 +146,10 @@ def main() -> None:
         fp = false_positives(ds, ids, pred)
         print(f"| {w} | {' / '.join(f'{a:.1f}' for a in ap7)} | {fp.mean():.1f} (median {np.median(fp):.0f}) |")
         near.append((w, near_cars(ds, ids, pred)))
+        preds[w] = pred
         if args.objects:
             objects.append((w, object_scores(ds, ids, pred)))
+    print("\n" + "\n".join(interval_rows(ds, ids, preds)))
     print(f"\nNear Cars and Vans (2D box >= {NEAR_PX} px, untruncated, occlusion <= 1), the best-"
           "overlapping Car detection (score >= 0.1):\n")
     print("| weights | labels | median IoU | IoU >= 0.7 | top edge, median (x height) | bottom edge |")

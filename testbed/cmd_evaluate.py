@@ -37,23 +37,31 @@ def _floats(ctx, param, value: str | None) -> list[float] | None:
               help="Detections below this score are left out of the error statistics (not of AP).")
 @click.option("--max-distance", default=80.0, show_default=True, type=float,
               help="D of the volumetric location precision (the sensor's perceived range), metres.")
+@click.option("--bootstrap", "draws", default=0, show_default=True, type=click.IntRange(min=0),
+              help="Also give each AP|R40 its 95 % interval over this many draws of the frames "
+                   "(with replacement; for small sets such as a few real frames).")
 def evaluate(gt_dir: Path, pred_dir: Path, split: Path | None, json_out: Path | None,
              range_bins: list[float] | None, classes: str, match_iou: float, min_score: float | None,
-             max_distance: float) -> None:
+             max_distance: float, draws: int) -> None:
     """Evaluate detections in PRED against truth in GT: 2D, bird's-eye, 3D and AOS, AP|R11 and
     AP|R40, easy/moderate/hard, exactly as the KITTI devkit; plus AP per distance bin,
     matched-pair errors and the volumetric metrics."""
     from kitti.eval import evaluate_folders
+    from kitti.eval.bootstrap import interval_table
     from kitti.io import atomic_write_text
 
+    names = [c.strip() for c in classes.split(",") if c.strip()]
     try:
-        res = evaluate_folders(gt_dir, pred_dir, split,
-                               classes=[c.strip() for c in classes.split(",") if c.strip()],
-                               range_bins=range_bins, match_iou=match_iou, min_score=min_score,
-                               max_distance=max_distance)
+        res = evaluate_folders(gt_dir, pred_dir, split, classes=names, range_bins=range_bins,
+                               match_iou=match_iou, min_score=min_score, max_distance=max_distance)
+        doc = res.to_json()
+        if draws:
+            text, doc["bootstrap"] = interval_table(gt_dir, pred_dir, split, res, draws)
     except ValueError as e:
         raise click.ClickException(str(e)) from None
     click.echo(res.table(), nl=False)
+    if draws:
+        click.echo(text)
     if json_out:
-        atomic_write_text(json_out, json.dumps(res.to_json(), indent=1) + "\n")
+        atomic_write_text(json_out, json.dumps(doc, indent=1) + "\n")
         click.echo(f"wrote {json_out}")
