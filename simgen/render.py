@@ -30,6 +30,7 @@ import os
 
 os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 
+from collections.abc import Iterable, MutableSet  # noqa: E402
 from dataclasses import dataclass  # noqa: E402
 
 import numpy as np  # noqa: E402
@@ -112,6 +113,42 @@ class _ExactCamera(pyrender.IntrinsicsCamera):
 
 
 _RENDERERS: dict[tuple[int, int, int], pyrender.OffscreenRenderer] = {}
+
+
+class _InsertionOrdered(MutableSet):
+    """A set that iterates in the order its items were added."""
+
+    def __init__(self, items: Iterable = ()):
+        self._items = dict.fromkeys(items)
+
+    def __contains__(self, item) -> bool:
+        return item in self._items
+
+    def __iter__(self):
+        return iter(self._items)
+
+    def __len__(self) -> int:
+        return len(self._items)
+
+    def add(self, item) -> None:
+        self._items[item] = None
+
+    def discard(self, item) -> None:
+        self._items.pop(item, None)
+
+
+class _Scene(pyrender.Scene):
+    """A pyrender.Scene whose mesh and light nodes iterate in the order they were added. The
+    renderer draws mesh nodes farthest first and, among nodes at one distance, in this order, and
+    sums lights in it: in a plain set both changed from run to run (an orbit view's target car
+    stands at the origin with the static world, whose road its tyres touch at one depth)."""
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        self._mesh_nodes = _InsertionOrdered()
+        self._point_light_nodes = _InsertionOrdered()
+        self._spot_light_nodes = _InsertionOrdered()
+        self._directional_light_nodes = _InsertionOrdered()
 
 
 def renderer(width: int, height: int) -> pyrender.OffscreenRenderer:
@@ -607,8 +644,8 @@ def build_scene(world: World) -> BuiltScene:
     cam2_from_world = rig.cam2_from_world()
     eye = np.linalg.inv(cam2_from_world)[:3, 3]
     shader = _Shader(world, eye)
-    scene = pyrender.Scene(bg_color=(*((0.02,) * 3 if shader.mode == "thermal" else SKY[light.time]), 1.0),
-                           ambient_light=(AMBIENT[light.time],) * 3)
+    scene = _Scene(bg_color=(*((0.02,) * 3 if shader.mode == "thermal" else SKY[light.time]), 1.0),
+                   ambient_light=(AMBIENT[light.time],) * 3)
     seg: dict = {}
     casters = Occluders(np.zeros((0, 3, 3), np.float32), np.zeros(0, np.float32))
     if world.static:
