@@ -192,7 +192,10 @@ def derive(world: World, instance: np.ndarray, rules: LabelRules) -> tuple[list[
         ry = float(wrap_angle(np.arctan2(-head[2], head[0])))
         box7 = np.array([*loc, h, w, l, ry])
         dist = float(np.hypot(loc[0], loc[2]))
-        sil = silhouette(actor, cam, K)
+        # Every part lies inside the box lo..hi: a box whose image misses the frame spares the
+        # union of the parts' outlines (half the actors stand beside or behind the camera).
+        reach = box_outline(lo, hi, cam @ actor.pose, K)
+        sil = silhouette(actor, cam, K) if reach is not None and reach.intersects(image) else None
         inside = sil.intersection(image) if sil is not None else None
         if inside is None or inside.area <= 0:
             truths.append(ActorTruth(actor.id, actor.cls, box7, False, None, 1.0, 0, 0.0, dist,
