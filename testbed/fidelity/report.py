@@ -120,6 +120,13 @@ def to_json(comp: Comparison) -> dict:
     }
 
 
+def _decided_fails(comp: Comparison) -> str:
+    """The decided fails by the size of their difference: where the generator is surely off."""
+    rows = sorted((r for r in comp.rows if r.verdict == "fail" and r.decided),
+                  key=lambda r: -abs(r.rel_diff) if r.rel_diff is not None else -math.inf)
+    return ", ".join(f"`{r.key}` ({_rel(r.rel_diff)})" for r in rows)
+
+
 def _header(comp: Comparison) -> list[str]:
     sim, real = comp.sim, comp.real
     counts = {v: sum(r.verdict == v for r in comp.rows) for v in ("pass", "fail", "n/a")}
@@ -135,10 +142,11 @@ def _header(comp: Comparison) -> list[str]:
         f"{real.split or 'every frame with an image'} |",
         f"| frames read | {len(sim.frames)} | {len(real.frames)} |", "",
         f"Verdicts: {counts['pass']} pass, {counts['fail']} fail, {counts['n/a']} n/a "
-        f"(relative tolerance, default ±{comp.tolerances.default:.0%}).",
+        f"(relative tolerance, default ±{comp.tolerances.default:.0%}).", "",
         *([f"Decided by these frames (the whole {LEVEL:.0%} bootstrap interval, {comp.draws} draws, on "
            f"the verdict's side of the tolerance): {decided['pass']} pass, {decided['fail']} fail; "
-           f"{undecided} undecided."] if comp.draws else []), "",
+           f"{undecided} undecided.", ""] if comp.draws else []),
+        *([f"Decided fails, largest first: {_decided_fails(comp)}.", ""] if decided["fail"] else []),
         f"frames skipped: {len(sim.skipped) + len(real.skipped)}", *skipped, ""]
 
 

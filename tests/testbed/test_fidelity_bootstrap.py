@@ -72,3 +72,15 @@ def test_the_real_dev_frames_against_themselves(real_root):
     assert rows["lidar.points_per_sweep"].decided is True
     left = rows["lidar.near_ground_share_left"]
     assert left.decided is False and left.interval.hi > 0.5 and left.interval.lo < -0.15
+
+
+def test_the_report_lists_the_decided_fails():
+    """Real 1.0 and 1.1 against 2: +90 % at the median (1.05), every draw +82 % to +100 %: a decided
+    fail, named with its difference; every statistic without values is n/a, never decided."""
+    from testbed.fidelity.report import _decided_fails
+
+    comp = compare(_one([2.0]), _one([1.0, 1.1]))
+    rows = {r.key: r for r in comp.rows}
+    assert rows["images.grey_mean"].verdict == "fail" and rows["images.grey_mean"].decided is True
+    assert all(r.verdict == "n/a" and r.decided is None for k, r in rows.items() if k != "images.grey_mean")
+    assert _decided_fails(comp) == "`images.grey_mean` (+90.5%)"
