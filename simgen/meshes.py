@@ -114,17 +114,18 @@ def _trimesh(shape: Shape) -> trimesh.Trimesh:
 def hull(points) -> Shape:
     """Closed convex hull of a point set, faces wound outward: watertight by construction.
 
-    qhull directly (trimesh's wrapper re-processes the mesh, 5x slower for these small hulls)."""
+    qhull directly (trimesh's wrapper re-processes the mesh, 5x slower for these small hulls);
+    np.cross's and np.unique's results written out, as their overhead costs more here."""
     pts = np.asarray(points, dtype=float)
     faces = ConvexHull(pts).simplices
-    used = np.unique(faces)
+    used = np.zeros(len(pts), bool)
+    used[faces] = True
     tri = pts[faces]
-    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    (u0, u1, u2), (w0, w1, w2) = (tri[:, 1] - tri[:, 0]).T, (tri[:, 2] - tri[:, 0]).T
+    normal = np.column_stack((u1 * w2 - u2 * w1, u2 * w0 - u0 * w2, u0 * w1 - u1 * w0))
     inward = np.einsum("ij,ij->i", normal, tri.mean(axis=1) - pts[used].mean(axis=0)) < 0
     faces = np.where(inward[:, None], faces[:, ::-1], faces)
-    new_index = np.empty(len(pts), np.intp)  # what np.unique's return_inverse gives, without a sort
-    new_index[used] = np.arange(len(used))
-    return Shape(pts[used], new_index[faces])
+    return Shape(pts[used], (np.cumsum(used) - 1)[faces])
 
 
 _BOX_FACES = np.array([[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7], [0, 1, 5], [0, 5, 4],
@@ -163,15 +164,17 @@ def _solid(v, faces) -> Shape:
 def _looks_inward(v: np.ndarray, face: np.ndarray) -> bool:
     """Whether `face` turns towards the solid's vertex mean: the sign of det [b - a, c - a,
     a - mean]. The triple product in plain floats decides (np.linalg.det costs 10 us); only
-    where it is too close to 0 for its sign to be sure does np.linalg.det, as before, decide."""
-    a, b, c = v[face]
-    m = v.mean(axis=0)
-    (u0, u1, u2), (w0, w1, w2), (z0, z1, z2) = (b - a).tolist(), (c - a).tolist(), (a - m).tolist()
+    where it is too close to 0 for its sign to be sure does np.linalg.det, as before, decide.
+    Differences in plain floats too: numpy's per call overhead costs more than these 3-vectors."""
+    (a0, a1, a2), (b0, b1, b2), (c0, c1, c2) = v[face].tolist()
+    m0, m1, m2 = (np.add.reduce(v, 0) / len(v)).tolist()  # v.mean(axis=0), without its wrapper
+    u0, u1, u2, w0, w1, w2 = b0 - a0, b1 - a1, b2 - a2, c0 - a0, c1 - a1, c2 - a2
+    z0, z1, z2 = a0 - m0, a1 - m1, a2 - m2
     det = u0 * (w1 * z2 - w2 * z1) - u1 * (w0 * z2 - w2 * z0) + u2 * (w0 * z1 - w1 * z0)
     size = (abs(u0) + abs(u1) + abs(u2)) * (abs(w0) + abs(w1) + abs(w2)) * (abs(z0) + abs(z1) + abs(z2))
     if abs(det) > 1e-9 * size:
         return det < 0
-    return bool(np.linalg.det(np.array([b - a, c - a, a - m])) < 0)
+    return bool(np.linalg.det(np.array([[u0, u1, u2], [w0, w1, w2], [z0, z1, z2]])) < 0)
 
 
 def hexahedron(v) -> Shape:
@@ -265,7 +268,7 @@ def _chamfered(profile, half_w: float, c: float) -> Shape:
     x = np.clip(p[:, 0], p[:, 0].min() + c, p[:, 0].max() - c)
     n = len(p)
     sections = ((x, half_w), (x, -half_w), (p[:, 0], half_w - c), (p[:, 0], c - half_w))
-    return hull(np.concatenate([np.c_[xs, np.full(n, y), p[:, 1]] for xs, y in sections]))
+    return hull(np.concatenate([np.column_stack((xs, np.full(n, y), p[:, 1])) for xs, y in sections]))
 
 
 def _on_side(s: int, belt: tuple, top: tuple, yb: float, yt: float, zb: float, zt: float):
@@ -383,7 +386,7 @@ def _car_ends(rng, k: _CarLayout, l: float) -> list[Part]:
     hw, c = k.body + 0.005, 0.13
     for x_end, sgn, z1 in ((l / 2, 1.0, tops[0]), (-l / 2, -1.0, tops[1])):
         x = x_end - sgn * np.array([0.0, 0.0, c, 0.40 - c, 0.40, 0.40, 0.40 - c, c])
-        bumper = _extrude(np.c_[x, [c - hw, hw - c, hw, hw, hw - c, c - hw, -hw, -hw]], 2, z0, z1)
+        bumper = _extrude(np.column_stack((x, [c - hw, hw - c, hw, hw, hw - c, c - hw, -hw, -hw])), 2, z0, z1)
         pz = (z0 + z1) / 2 if sgn > 0 else z1 + 0.03 + PLATE_H / 2
         px = x_end - 0.001 if sgn > 0 else k.back
         parts += [Part(bumper, TRIM), Part(_box(px - 0.005, px + 0.005, -PLATE_W / 2, PLATE_W / 2,

@@ -1,7 +1,8 @@
 """Static scenery: road surface, lane markings, curbs, sidewalks, verges, buildings, trees, poles,
 fences, street furniture (signs, signals, bins, bollards, cycle stands). A pure function of its
 parameters (kept in `World.scenery` and in meta/), merged into one part per material so the
-renderer and the LiDAR see few large meshes.
+renderer and the LiDAR see few large meshes. The pieces are mostly plain vertices and faces
+(simgen.meshes.Shape): a trimesh for each of the hundreds a frame cost ~30 ms.
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ import trimesh
 from .materials import (ASPHALT, BARK, CONCRETE, FACADE_REFLECTIVITY, FENCE, FOLIAGE,  # noqa: F401
                         FOREST_FLOOR, MARKING, METAL, SAND, SIDEWALK, SIGN_BLUE, SIGN_RED, SIGN_WHITE,
                         SIGN_YELLOW, TRIM, VERGE, paint_material, signal_lens)
-from .meshes import box, extrude
+from .meshes import Shape, box, extrude
 from .relief import drape_parts
 from .road import RoadLayout
 from .world import Material, Part
@@ -45,19 +46,19 @@ def _strip(road: RoadLayout, s: np.ndarray, d0: float, d1: float, z0: float, z1:
     from z0 to z1 (d0 == d1). Faces wound to face up (horizontal) or towards +d (vertical)."""
     n = len(s)
     if z1 is None:
-        a = np.c_[road.xy(s, d0), np.full(n, z0)]
-        b = np.c_[road.xy(s, d1), np.full(n, z0)]
+        a = np.column_stack((road.xy(s, d0), np.full(n, z0)))
+        b = np.column_stack((road.xy(s, d1), np.full(n, z0)))
     else:
-        a = np.c_[road.xy(s, d0), np.full(n, z1)]
-        b = np.c_[road.xy(s, d0), np.full(n, z0)]
+        a = np.column_stack((road.xy(s, d0), np.full(n, z1)))
+        b = np.column_stack((road.xy(s, d0), np.full(n, z0)))
     v = np.concatenate([a, b])
     i = np.arange(n - 1)
-    faces = np.concatenate([np.c_[i, i + 1, i + n], np.c_[i + 1, i + n + 1, i + n]])
-    return trimesh.Trimesh(v, faces, process=False)
+    faces = np.concatenate([np.column_stack((i, i + 1, i + n)), np.column_stack((i + 1, i + n + 1, i + n))])
+    return Shape(v, faces)
 
 
-def _flip(m: trimesh.Trimesh) -> trimesh.Trimesh:
-    return trimesh.Trimesh(m.vertices, m.faces[:, ::-1], process=False)
+def _flip(m: Shape) -> Shape:
+    return Shape(m.vertices, m.faces[:, ::-1])
 
 
 def _oriented_box(road: RoadLayout, s: float, d: float, z: float, l: float, w: float, h: float):
@@ -67,21 +68,28 @@ def _oriented_box(road: RoadLayout, s: float, d: float, z: float, l: float, w: f
     return m
 
 
-def _footprint(m: trimesh.Trimesh) -> shapely.Polygon:
+def _footprint(m: Shape | trimesh.Trimesh) -> shapely.Polygon:
     return shapely.convex_hull(shapely.MultiPoint(m.vertices[:, :2]))
 
 
-def _rect(x0: float, x1: float, y0: float, y1: float, z: float) -> trimesh.Trimesh:
+def _plain(m: trimesh.Trimesh) -> Shape:
+    """A template mesh's arrays as plain numpy (arithmetic on trimesh's tracked arrays costs more)."""
+    return Shape(np.asarray(m.vertices), np.asarray(m.faces))
+
+
+_QUAD = np.array([[0, 1, 2], [0, 2, 3]])  # a quad's corners in order round it, as two triangles
+
+
+def _rect(x0: float, x1: float, y0: float, y1: float, z: float) -> Shape:
     """An upward-facing horizontal rectangle in world coordinates."""
     v = np.array([[x0, y0, z], [x1, y0, z], [x1, y1, z], [x0, y1, z]], float)
-    return trimesh.Trimesh(v, [[0, 1, 2], [0, 2, 3]], process=False)
+    return Shape(v, _QUAD)
 
 
-def _wall(x: float, y0: float, y1: float, z0: float, z1: float, facing: float) -> trimesh.Trimesh:
+def _wall(x: float, y0: float, y1: float, z0: float, z1: float, facing: float) -> Shape:
     """A vertical rectangle in the plane world x = const, facing +x (facing > 0) or -x."""
     v = np.array([[x, y0, z0], [x, y1, z0], [x, y1, z1], [x, y0, z1]], float)
-    faces = [[0, 1, 2], [0, 2, 3]] if facing > 0 else [[0, 2, 1], [0, 3, 2]]
-    return trimesh.Trimesh(v, faces, process=False)
+    return Shape(v, _QUAD if facing > 0 else _QUAD[:, [0, 2, 1]])
 
 
 def _spans(road: RoadLayout, margin: float) -> list[tuple[float, float]]:
@@ -119,15 +127,15 @@ class _Meshes:
     """The scenery built so far: meshes by material, footprints, and the areas to keep clear."""
 
     def __init__(self, clear: list[shapely.Polygon]):
-        self.by_mat: dict[Material, list[trimesh.Trimesh]] = {}
+        self.by_mat: dict[Material, list[Shape | trimesh.Trimesh]] = {}
         self.obstacles: list[Obstacle] = []
         self.clear = clear
         self.sight = list(clear)  # the caller's keep-clear areas: even the signals keep off them
 
-    def add(self, mat: Material, mesh: trimesh.Trimesh) -> None:
+    def add(self, mat: Material, mesh: Shape | trimesh.Trimesh) -> None:
         self.by_mat.setdefault(mat, []).append(mesh)
 
-    def blocks(self, mesh: trimesh.Trimesh) -> bool:
+    def blocks(self, mesh: Shape | trimesh.Trimesh) -> bool:
         """Whether the mesh would stand in a keep-clear area (a sight line, the cross street)."""
         fp = _footprint(mesh)
         return any(fp.intersects(c) for c in self.clear)
@@ -235,14 +243,16 @@ def _trees(road: RoadLayout, side: int, outer: float, per_100m: float, woods: fl
         out.obstacles.append(Obstacle(_footprint(crown), base=ch + trunk_h))
 
 
+_POLE = _plain(trimesh.creation.cylinder(radius=0.09, height=7.0, sections=8))  # moved to each pole's place
+
+
 def _poles(road: RoadLayout, side: int, curb: float, spacing: float, rng: np.random.Generator,
            out: _Meshes) -> None:
     """7 m poles half a metre behind the curb, evenly spaced from a random start."""
     ch = road.curb_height
     for sp in np.arange(road.s_min + rng.uniform(0, spacing), road.s_max, spacing):
         x, y = road.xy(sp, curb + side * 0.5)
-        pole = trimesh.creation.cylinder(radius=0.09, height=7.0, sections=8)
-        pole.apply_translation([x, y, ch + 3.5])
+        pole = _moved(_POLE, [x, y, ch + 3.5])
         if out.blocks(pole):
             continue
         out.add(METAL, pole)
@@ -421,17 +431,25 @@ def _car_park_plan(road: RoadLayout, lot: Lot, rng: np.random.Generator) -> tupl
 
 # Unit meshes the frontage scales and places by plain vertex arithmetic (thousands per world:
 # trimesh's creation and transform calls cost ~20x more).
-_UNIT_BOX = trimesh.creation.box(extents=[1.0, 1.0, 1.0])
-_UNIT_CYLINDER = trimesh.creation.cylinder(radius=1.0, height=1.0, sections=8)
-_UNIT_SPHERES = {k: trimesh.creation.icosphere(subdivisions=k, radius=1.0) for k in (0, 1)}
+_UNIT_BOX = _plain(trimesh.creation.box(extents=[1.0, 1.0, 1.0]))
+_UNIT_CYLINDER = _plain(trimesh.creation.cylinder(radius=1.0, height=1.0, sections=8))
+_UNIT_SPHERES = {k: _plain(trimesh.creation.icosphere(subdivisions=k, radius=1.0)) for k in (0, 1)}
 
 
-def _placed(unit: trimesh.Trimesh, scale, at) -> trimesh.Trimesh:
-    return trimesh.Trimesh(unit.vertices * np.asarray(scale) + np.asarray(at), unit.faces, process=False)
+def _placed(unit: Shape, scale, at) -> Shape:
+    return Shape(unit.vertices * np.asarray(scale) + np.asarray(at), unit.faces)
+
+
+def _moved(m: Shape, at) -> Shape:
+    """m moved by `at` as trimesh's apply_translation moves it (the same homogeneous product, so
+    the same bits)."""
+    move = np.eye(4)
+    move[:3, 3] = at
+    return Shape(trimesh.transformations.transform_points(m.vertices, move), m.faces)
 
 
 def _qbox(road: RoadLayout, side: int, s0: float, s1: float, q0: float, q1: float, z: float,
-          h: float) -> trimesh.Trimesh:
+          h: float) -> Shape:
     """A box over [s0, s1] along the road and q0..q1 metres behind the sidewalk of `side`, its
     long axes along the road's heading at the box's centre."""
     s, d = (s0 + s1) / 2, _outer(road, side) + side * (q0 + q1) / 2
@@ -439,9 +457,9 @@ def _qbox(road: RoadLayout, side: int, s0: float, s1: float, q0: float, q1: floa
     c, sn = np.cos(psi), np.sin(psi)
     local = _UNIT_BOX.vertices * [s1 - s0, q1 - q0, h]
     x, y = road.xy(s, d)
-    v = np.c_[x + c * local[:, 0] - sn * local[:, 1], y + sn * local[:, 0] + c * local[:, 1],
-              local[:, 2] + z + h / 2]
-    return trimesh.Trimesh(v, _UNIT_BOX.faces, process=False)
+    v = np.column_stack((x + c * local[:, 0] - sn * local[:, 1], y + sn * local[:, 0] + c * local[:, 1],
+                         local[:, 2] + z + h / 2))
+    return Shape(v, _UNIT_BOX.faces)
 
 
 def _quad_polygon(road: RoadLayout, s0: float, s1: float, d0: float, d1: float) -> shapely.Polygon:
@@ -449,7 +467,7 @@ def _quad_polygon(road: RoadLayout, s0: float, s1: float, d0: float, d1: float) 
     return shapely.Polygon(np.concatenate([road.xy(ss, d0), road.xy(ss[::-1], d1)]))
 
 
-def _add_building(out: _Meshes, rng: np.random.Generator, m: trimesh.Trimesh) -> None:
+def _add_building(out: _Meshes, rng: np.random.Generator, m: Shape) -> None:
     if out.blocks(m):
         return
     out.add(Material("facade", _FACADES[int(rng.integers(len(_FACADES)))], FACADE_REFLECTIVITY), m)
@@ -460,12 +478,13 @@ def _tree(out: _Meshes, x: float, y: float, z: float, height: float, r: float, b
           trunk_r: float = 0.2) -> None:
     """Trunk up to `base` above z, an ellipsoid crown of radius r from base to height."""
     rz = max(0.5, (height - base) / 2)
-    crown_fp = shapely.Point(x, y).buffer(r, 8)
+    at = shapely.Point(x, y)
+    crown_fp = at.buffer(r, 8)
     if out.clear and any(crown_fp.intersects(c) for c in out.clear):
         return
     out.add(BARK, _placed(_UNIT_CYLINDER, [trunk_r, trunk_r, base + rz], [x, y, z + (base + rz) / 2]))
     out.add(FOLIAGE, _placed(_UNIT_SPHERES[1], [r, r, rz], [x, y, z + base + rz]))
-    out.obstacles.append(Obstacle(shapely.Point(x, y).buffer(trunk_r + 0.1, 4)))
+    out.obstacles.append(Obstacle(at.buffer(trunk_r + 0.1, 4)))
     out.obstacles.append(Obstacle(crown_fp, base=z + base))
 
 
@@ -512,7 +531,7 @@ def _boundary_style(kind: str, rng: np.random.Generator) -> tuple[float, float, 
     return rng.uniform(*WALL_HEIGHT), 0.25, CONCRETE
 
 
-def _add_solid(out: _Meshes, mat: Material, m: trimesh.Trimesh) -> None:
+def _add_solid(out: _Meshes, mat: Material, m: Shape) -> None:
     if not out.blocks(m):
         out.add(mat, m)
         out.obstacles.append(Obstacle(_footprint(m)))
@@ -699,8 +718,7 @@ def _side_street(road: RoadLayout, side: int, a: float, b: float, out: _Meshes) 
         v = np.array([[*p0, ch], [*p1, ch], [*p1, 0.0], [*p0, 0.0]])
         n = np.cross(v[1] - v[0], v[2] - v[0])
         t = np.array([np.cos(road.heading(s)), np.sin(road.heading(s)), 0.0]) * facing
-        faces = [[0, 1, 2], [0, 2, 3]] if n @ t > 0 else [[0, 2, 1], [0, 3, 2]]
-        out.add(CONCRETE, trimesh.Trimesh(v, faces, process=False))
+        out.add(CONCRETE, Shape(v, _QUAD if n @ t > 0 else _QUAD[:, [0, 2, 1]]))
     out.clear.append(_quad_polygon(road, a - 0.5, b + 0.5, d0, d1))
 
 
@@ -821,8 +839,8 @@ STAND_GROUPS_PER_100M = 0.3
 STAND_R, STAND_H, STAND_L, STAND_PITCH, STAND_GROUP, STAND_SIDEWALK = 0.024, 0.8, 1.0, 1.2, (2, 7), 2.5
 
 
-def _posed(m: trimesh.Trimesh, T: np.ndarray) -> trimesh.Trimesh:
-    return trimesh.Trimesh(m.vertices @ T[:3, :3].T + T[:3, 3], m.faces, process=False)
+def _posed(m: Shape | trimesh.Trimesh, T: np.ndarray) -> Shape:
+    return Shape(m.vertices @ T[:3, :3].T + T[:3, 3], m.faces)
 
 
 def _regular(n: int, r: float, phase_deg: float) -> np.ndarray:
@@ -836,7 +854,7 @@ def _plate(poly: np.ndarray, x0: float, x1: float, z: float) -> trimesh.Trimesh:
     return extrude(poly + [0.0, z], 0, x0, x1)
 
 
-def _column(x: float, y: float, r: float, z0: float, z1: float) -> trimesh.Trimesh:
+def _column(x: float, y: float, r: float, z0: float, z1: float) -> Shape:
     return _placed(_UNIT_CYLINDER, [r, r, z1 - z0], [x, y, (z0 + z1) / 2])
 
 
@@ -855,7 +873,7 @@ class _Furnisher:
         curb = self.road.right_curb if side < 0 else self.road.left_curb
         return self.road.pose(s, curb + side * inset, 0.0, yaw)
 
-    def add(self, parts: list[tuple[Material, trimesh.Trimesh]], obstacles: list[Obstacle],
+    def add(self, parts: list[tuple[Material, Shape]], obstacles: list[Obstacle],
             corner: bool = False) -> bool:
         """Adds the piece unless it stands in a keep-clear area (at a corner: a sight line only),
         on an obstacle lower than its top, or on a piece placed before."""
@@ -979,6 +997,14 @@ def _furniture(road: RoadLayout, clutter: dict, seed: int, out: _Meshes) -> None
             _stands(f, side, s, int(rng.integers(*STAND_GROUP)))
 
 
+def _merged(meshes: list[Shape | trimesh.Trimesh]) -> trimesh.Trimesh:
+    """One mesh of many: trimesh.util.concatenate's vertices and faces (stacked, faces offset)
+    without its per-mesh type checks, visuals and metadata, which cost ~50 ms a frame."""
+    starts = np.cumsum([0] + [len(m.vertices) for m in meshes[:-1]])
+    faces = np.concatenate([m.faces + start for m, start in zip(meshes, starts)])
+    return trimesh.Trimesh(np.concatenate([m.vertices for m in meshes]), faces, process=False)
+
+
 def build_scenery(params: dict) -> tuple[list[Part], list[Obstacle]]:
     """Static parts (world frame) and their footprints, from the scenery parameters.
 
@@ -997,7 +1023,7 @@ def build_scenery(params: dict) -> tuple[list[Part], list[Obstacle]]:
     if plan is not None:
         _build_frontage(road, plan, clutter, ground, int(params["seed"]), out)
         _furniture(road, clutter, int(params["seed"]), out)
-        parts = [Part(trimesh.util.concatenate(ms), mat) for mat, ms in out.by_mat.items()]
+        parts = [Part(_merged(ms), mat) for mat, ms in out.by_mat.items()]
         return drape_parts(parts, road), out.obstacles
     rng = np.random.default_rng(params["seed"])
     _ground(road, ground, out)
@@ -1014,5 +1040,5 @@ def build_scenery(params: dict) -> tuple[list[Part], list[Obstacle]]:
         if clutter["pole_spacing"] > 0:
             _poles(road, side, curb, clutter["pole_spacing"], rng, out)
     _furniture(road, clutter, int(params["seed"]), out)
-    parts = [Part(trimesh.util.concatenate(ms), mat) for mat, ms in out.by_mat.items()]
+    parts = [Part(_merged(ms), mat) for mat, ms in out.by_mat.items()]
     return drape_parts(parts, road), out.obstacles
