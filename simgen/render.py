@@ -33,6 +33,7 @@ os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 from collections.abc import Iterable, MutableSet  # noqa: E402
 from dataclasses import dataclass  # noqa: E402
 
+import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 import pyrender  # noqa: E402
 from pyrender.constants import RenderFlags  # noqa: E402
@@ -209,7 +210,7 @@ def _triangles(parts: list[Part]) -> tuple[np.ndarray, np.ndarray]:
 
 def _faceted(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(F, 3, 3) triangles and (F, 3) unit normals of a mesh."""
-    tris = vertices[faces]
+    tris = np.take(vertices, faces, axis=0)  # vertices[faces], gathered faster
     return tris, _normals(tris)
 
 
@@ -221,18 +222,14 @@ def _lengths(v: np.ndarray) -> np.ndarray:
 
 
 def _normals(tris: np.ndarray) -> np.ndarray:
-    """(F, 3) unit normals of (F, 3, 3) triangles."""
-    n = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
+    """(F, 3) unit normals of (F, 3, 3) triangles. The edges and np.cross's products and
+    differences, in its order (the same bits), one coordinate at a time: numpy's loops then run
+    over all faces, not three numbers."""
+    a0, a1, a2 = (tris[:, 1, j] - tris[:, 0, j] for j in range(3))
+    b0, b1, b2 = (tris[:, 2, j] - tris[:, 0, j] for j in range(3))
+    n = np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=1)
     n /= np.maximum(_lengths(n), 1e-300)[:, None]
     return n
-
-
-def _split_faceted(meshes: list[tuple[np.ndarray, np.ndarray]]) -> list[tuple[np.ndarray, np.ndarray]]:
-    """_faceted of each mesh, computed for all at once (elementwise and per-row work: the same
-    bits as one by one)."""
-    tris = np.concatenate([v[f] for v, f in meshes])
-    ends = np.cumsum([len(f) for _, f in meshes])[:-1]
-    return list(zip(np.split(tris, ends), np.split(_normals(tris), ends)))
 
 
 def _primitive(tris: np.ndarray, normals: np.ndarray | None, rgba: np.ndarray | None, material,
@@ -309,13 +306,17 @@ class _Shader:
              normals: np.ndarray) -> np.ndarray:
         """(N, 4) gamma-encoded RGB and the share of light that is not direct sun, of N surface
         points of the given albedo and normal."""
-        sun = np.clip(normals @ self.sun, 0.0, 1.0)[:, None] * self.sun_rgb * _DIFFUSE
-        sky = self.ambient * (0.7 + 0.3 * normals[:, 2:3])
-        lin = albedo * (sun + sky)
-        if glossy.any():
-            lin[glossy] += self._mirror(points[glossy], normals[glossy])
-        share = sky / np.maximum(sun + sky, 1e-9)
-        rest = (share[:, 0] + share[:, 1] + share[:, 2]) / 3  # the mean over channels, in its order
+        cos = np.clip(normals @ self.sun, 0.0, 1.0)
+        sky = self.ambient * (0.7 + 0.3 * normals[:, 2])
+        lin, share = np.empty((len(cos), 3)), []
+        for c in range(3):  # channel by channel: numpy's loops run over all points, not 3 channels
+            total = cos * self.sun_rgb[c] * _DIFFUSE + sky
+            lin[:, c] = albedo[:, c] * total
+            share.append(sky / np.maximum(total, 1e-9))
+        shiny = np.flatnonzero(glossy)
+        if len(shiny):
+            lin[shiny] += self._mirror(np.take(points, shiny, axis=0), np.take(normals, shiny, axis=0))
+        rest = (share[0] + share[1] + share[2]) / 3  # the mean over channels, in its order
         out = np.empty((len(lin), 4))
         out[:, :3] = np.clip(lin / self.headroom, 0.0, 1.0) ** (1 / 2.2)
         out[:, 3] = np.clip(rest, 0.0, 1.0) ** (1 / 2.2)
@@ -335,7 +336,9 @@ class _Shader:
         cos = np.abs(cos)
         fresnel = F0 + (1 - F0) * (1 - cos) ** 5
         r = 2 * cos[:, None] * n - view
-        env = np.where(r[:, 2:3] > 0, _sky_radiance(r[:, 2]), GROUND_RADIANCE)
+        env = np.full((len(r), 3), GROUND_RADIANCE)
+        up = np.flatnonzero(r[:, 2] > 0)
+        env[up] = _sky_radiance(r[up, 2])
         half = view + self.sun
         half /= np.maximum(_lengths(half), 1e-9)[:, None]
         glint = np.clip(np.einsum("ij,ij->i", n, half), 0.0, 1.0) ** HIGHLIGHT_EXPONENT
@@ -361,16 +364,17 @@ def _actor_meshes(bodies: list[tuple[list[Part], np.ndarray, bool]], shader: _Sh
     if not bodies:
         return ([], None, Occluders(np.zeros((0, 3, 3), np.float32), np.zeros(0, np.float32)),
                 Reach(np.zeros((0, 4, 4)), np.zeros((0, 3)), np.zeros((0, 3))))
-    shared = [_shared(parts) for parts, _, _ in bodies]
+    parts = [p for b, _, _ in bodies for p in b]
+    vertices, faces = _shared(parts)  # each part in its actor's frame
+    own_tris, own_n = _faceted(vertices, faces)  # row by row: the same bits as actor by actor
+    counts = [sum(len(p.mesh.faces) for p in b) for b, _, _ in bodies]  # faces per actor
+    ends = np.cumsum(counts)[:-1]
+    v_starts = np.cumsum([0, *(sum(len(p.mesh.vertices) for p in b) for b, _, _ in bodies)])[:-1]
     reach = Reach(np.array([np.linalg.inv(pose) for _, pose, _ in bodies]),
-                  np.array([v.min(axis=0) for v, _ in shared]), np.array([v.max(axis=0) for v, _ in shared]))
-    geo = _split_faceted(shared)
+                  np.minimum.reduceat(vertices, v_starts), np.maximum.reduceat(vertices, v_starts))
+    geo = list(zip(np.split(own_tris, ends), np.split(own_n, ends)))
     world_tris = np.concatenate([t @ pose[:3, :3].T + pose[:3, 3] for (t, _), (_, pose, _) in zip(geo, bodies)])
     world_n = np.concatenate([n @ pose[:3, :3].T for (_, n), (_, pose, _) in zip(geo, bodies)])
-    counts = [len(t) for t, _ in geo]  # faces per actor
-    ends = np.cumsum(counts)[:-1]
-    parts = [p for b, _, _ in bodies for p in b]
-    own_tris, own_n = np.concatenate([t for t, _ in geo]), np.concatenate([n for _, n in geo])  # actor frames
     if shader.mode == "thermal":  # warm when moving: per actor
         rgba = np.concatenate([shader.colors(b, None, None, moving) for b, _, moving in bodies])
     elif shader.mode == "lit":
@@ -380,8 +384,8 @@ def _actor_meshes(bodies: list[tuple[list[Part], np.ndarray, bool]], shader: _Sh
         rgba = shader.colors(parts, world_tris, world_n, False, corner_normals=bent)
     else:
         rgba = shader.colors(parts, world_tris, world_n, False)
-    world_v = np.concatenate([v @ pose[:3, :3].T + pose[:3, 3] for (v, _), (_, pose, _) in zip(shared, bodies)])
-    faces = _joint_faces([f for _, f in shared], [len(v) for v, _ in shared])
+    world_v = np.concatenate([v @ pose[:3, :3].T + pose[:3, 3]
+                              for v, (_, pose, _) in zip(np.split(vertices, v_starts[1:]), bodies)])
     casters = Occluders.of_parts(parts, world_tris, (world_v, faces))
     if rng is None:
         return ([pyrender.Mesh([_primitive(t, shader.gl_normals(n), c, _PLAIN)])
@@ -421,15 +425,13 @@ def _texture_coordinates(parts: list[Part], tris: np.ndarray, normals: np.ndarra
     kinds = sorted(textures.ACTOR_MAKERS)
     code = np.array([kinds.index(textures.OF_ACTOR_MATERIAL[p.material.name])
                      if p.material.name in textures.OF_ACTOR_MATERIAL else -1 for p in parts])[owner]
-    starts = np.cumsum([0, *counts[:-1]])
-    lo = np.minimum.reduceat(tris.min(axis=1), starts)[owner]  # each face's part's box
-    hi = np.maximum.reduceat(tris.max(axis=1), starts)[owner]
+    lo, hi = _part_boxes(counts, tris)
     out = {}
     for k, kind in enumerate(kinds):
         idx = np.flatnonzero(code == k)
         if not len(idx):
             continue
-        t, n, a, b, sh = tris[idx], normals[idx], lo[idx], hi[idx], shift[idx, None]
+        t, n, a, b, sh = tris[idx], normals[idx], lo[owner[idx]], hi[owner[idx]], shift[idx, None]
         v = (t[..., 2] - a[:, 2:]) / np.maximum(b[:, 2:] - a[:, 2:], 1e-9)
         side = (np.abs(n[:, 1]) >= np.abs(n[:, 0]))[:, None]
         along = np.where(side, t[..., 0], t[..., 1])
@@ -460,14 +462,24 @@ PANEL_TURN = np.radians(30.0)
 BEND = np.tan(PANEL_TURN / 2) / (1 - np.tan(PANEL_TURN / 2))
 
 
+def _part_boxes(face_counts: list[int], tris: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(P, 3) lowest and highest corners of consecutive parts' faces (`face_counts` faces each),
+    corner by corner and one coordinate at a time: the same bits as a reduction over the corners,
+    in numpy loops that run over all faces rather than three numbers."""
+    lo, hi = np.empty((len(tris), 3)), np.empty((len(tris), 3))
+    for j in range(3):
+        a, b, c = tris[:, 0, j], tris[:, 1, j], tris[:, 2, j]
+        np.minimum(np.minimum(a, b), c, out=lo[:, j])
+        np.maximum(np.maximum(a, b), c, out=hi[:, j])
+    starts = np.cumsum([0, *face_counts[:-1]])
+    return np.minimum.reduceat(lo, starts), np.maximum.reduceat(hi, starts)
+
+
 def _bent_normals(face_counts: list[int], tris: np.ndarray, normals: np.ndarray) -> np.ndarray:
     """(F, 3, 3) shading normals of the corners of consecutive parts' faces (`face_counts` faces
     each; tris and normals in one frame): each face normal bent by BEND towards the corner's
     direction from its part's box centre, measured in the box's half extents."""
-    starts = np.cumsum([0, *face_counts[:-1]])
-    a, b, c = tris[:, 0], tris[:, 1], tris[:, 2]  # corner by corner: faster than a reduction
-    lo = np.minimum.reduceat(np.minimum(np.minimum(a, b), c), starts)
-    hi = np.maximum.reduceat(np.maximum(np.maximum(a, b), c), starts)
+    lo, hi = _part_boxes(face_counts, tris)
     owner = np.repeat(np.arange(len(face_counts)), face_counts)
     centre, half = ((lo + hi) / 2)[owner], np.maximum((hi - lo) / 2, 1e-6)[owner]
     bent = normals[:, None, :] + BEND * (tris - centre[:, None, :]) / half[:, None, :]
@@ -510,13 +522,16 @@ def _planar_uv(tris: np.ndarray, normals: np.ndarray, tile: tuple[float, float],
                shift: np.ndarray) -> np.ndarray:
     """Texture coordinates from world coordinates: (x, y) on faces that face up or down, (along
     the face, z) on the others."""
-    up = np.abs(normals[:, 2]) >= 0.7
-    t = np.c_[-normals[:, 1], normals[:, 0]]
+    side = np.flatnonzero(np.abs(normals[:, 2]) < 0.7)  # row by row: only these need the tangent
+    t = np.c_[-normals[side, 1], normals[side, 0]]
     t /= np.maximum(np.linalg.norm(t, axis=1, keepdims=True), 1e-9)
-    along = np.einsum("fkj,fj->fk", tris[..., :2], t)
-    u = np.where(up[:, None], tris[..., 0], along)
-    v = np.where(up[:, None], tris[..., 1], tris[..., 2])
-    return np.stack([u / tile[0], v / tile[1]], axis=2) + shift
+    uv = tris[..., :2].copy()
+    uv[side, :, 0] = np.einsum("fkj,fj->fk", tris[side][..., :2], t)
+    uv[side, :, 1] = tris[side, :, 2]
+    for k, column in enumerate(uv.reshape(-1, 2).T):  # u, then v: numpy loops over all corners
+        column /= tile[k]
+        column += shift[k]
+    return uv
 
 
 def _static_mesh(parts: list[Part], shader: _Shader, world: World) -> tuple[pyrender.Mesh, Occluders]:
@@ -531,30 +546,32 @@ def _static_mesh(parts: list[Part], shader: _Shader, world: World) -> tuple[pyre
     casters = Occluders.of_parts(parts, tris, (vertices, faces))
     if shader.mode != "lit" or not look.textures:
         return pyrender.Mesh([_primitive(tris, shader.gl_normals(normals), rgba, _PLAIN)]), casters
-    owner = np.repeat(np.arange(len(parts)), [len(p.mesh.faces) for p in parts])
+    ends = np.cumsum([len(p.mesh.faces) for p in parts])
     prims, plain = [], np.ones(len(tris), bool)
     for i, part in enumerate(parts):
         name = part.material.name
+        own = slice(ends[i] - len(part.mesh.faces), ends[i])  # the part's faces
         if name == "facade":
-            vertical = (owner == i) & (np.abs(normals[:, 2]) < 0.7)
+            vertical = np.abs(normals[own, 2]) < 0.7
             wall = "brick" if rng.uniform() < 0.4 else "plaster"
-            groups = [(vertical, wall), ((owner == i) & ~vertical, "roof")]
+            groups = [(vertical, wall), (~vertical, "roof")]
         elif name in textures.OF_MATERIAL:
-            groups = [(owner == i, textures.OF_MATERIAL[name])]
+            groups = [(np.ones(len(part.mesh.faces), bool), textures.OF_MATERIAL[name])]
         else:
             continue
+        plain[own] = False
         for sel, kind in groups:
             if not sel.any():
                 continue
+            t, n = tris[own][sel], normals[own][sel]
             variant = int(rng.integers(textures.VARIANTS))
             tile = tuple(np.asarray(textures.TILE_M[kind]) * rng.uniform(0.85, 1.15))
             if kind in ("brick", "plaster"):
-                uv = _facade_uv(tris[sel], normals[sel], tile, 0.5 * rng.integers(2))
+                uv = _facade_uv(t, n, tile, 0.5 * rng.integers(2))
             else:
-                uv = _planar_uv(tris[sel], normals[sel], tile, rng.uniform(0, 1, 2))
-            colour = rgba[sel] * np.array([textures.MAX_GAIN] * 3 + [1.0])
-            prims.append(_primitive(tris[sel], None, colour, _textured(kind, variant), uv))  # lit: flat
-            plain &= ~sel
+                uv = _planar_uv(t, n, tile, rng.uniform(0, 1, 2))
+            colour = rgba[own][sel] * np.array([textures.MAX_GAIN] * 3 + [1.0])
+            prims.append(_primitive(t, None, colour, _textured(kind, variant), uv))  # lit: flat
     if plain.any():
         prims.append(_primitive(tris[plain], None, rgba[plain], _PLAIN))
     return pyrender.Mesh(prims), casters
@@ -718,11 +735,11 @@ def shade(world: World, color: np.ndarray, depth: np.ndarray, instance: np.ndarr
     sun = sun_shadow(casters.every(), depth, K, cam2_from_world, _to_sun(world.light), color[..., 3] < 250)
     sky = sky_occlusion(casters.actors, casters.reach, depth, instance == 0, K, cam2_from_world)
     # Only darkened pixels change (elsewhere the factor is exactly 1).
-    out = np.array(rgb)
+    out = cv2.cvtColor(color, cv2.COLOR_RGBA2RGB)  # a copy of rgb, faster than numpy's 3 bytes at a time
     hit = np.flatnonzero((sun != 0) | (sky != 0))
     flat = out.reshape(-1, 3)
-    flat[hit] = darken(flat[hit], color[..., 3].ravel()[hit], sun.ravel()[hit], sky.ravel()[hit],
-                       (_shade_tint(world.light.time) ** 2.2).astype(np.float32))
+    flat[hit] = darken(np.take(flat, hit, axis=0), color[..., 3].ravel()[hit], sun.ravel()[hit],
+                       sky.ravel()[hit], (_shade_tint(world.light.time) ** 2.2).astype(np.float32))
     return out
 
 
@@ -732,7 +749,7 @@ def darken(rgb: np.ndarray, alpha: np.ndarray, sun: np.ndarray, sky: np.ndarray,
     away. In linear light, per channel: a share r of the light is the sky's (alpha, gamma-encoded,
     times the linear `tint`, skylight being bluer than the sun); occlusion `sky` cuts that share,
     shadow depth `sun` the rest."""
-    r = np.minimum(_LINEAR[alpha][:, None] * tint, np.float32(1.0))
+    r = np.take(np.minimum(_LINEAR[:, None] * tint, np.float32(1.0)), alpha, axis=0)  # per 8-bit alpha
     left = (1.0 - sun[:, None]) * (1.0 - r) + (1.0 - sky[:, None]) * r
     return np.clip(np.round(rgb * np.power(left, np.float32(1 / 2.2))), 0, 255).astype(np.uint8)
 

@@ -132,7 +132,7 @@ class Occluders:
         if shared is None:
             return Occluders(tris, depth)
         vertices, faces = np.asarray(shared[0], np.float32), np.asarray(shared[1], np.int32)
-        if faces.shape != (len(tris), 3) or not np.array_equal(vertices[faces], tris):
+        if faces.shape != (len(tris), 3) or not np.array_equal(np.take(vertices, faces, axis=0), tris):
             return Occluders(tris, depth)
         return Occluders(tris, depth, vertices, faces)
 
