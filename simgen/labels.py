@@ -202,7 +202,9 @@ def derive(world: World, instance: np.ndarray, rules: LabelRules) -> tuple[list[
                                      "out_of_view"))
             continue
         sil_bbox = _clipped_bounds(inside, image, W, H)
-        bbox = _clipped_bounds(box_outline(lo, hi, cam @ _label_pose(actor.pose, centre, lo, hi), K), image, W, H)
+        label_pose = _label_pose(actor.pose, centre, lo, hi)
+        outline = reach if label_pose is actor.pose else box_outline(lo, hi, cam @ label_pose, K)
+        bbox = _clipped_bounds(outline, image, W, H)
         trunc = float(np.clip(1.0 - inside.area / sil.area, 0.0, 1.0))
         vis_px = int(counts[actor.id]) if actor.id < len(counts) else 0
         share = float(min(1.0, vis_px / inside.area))

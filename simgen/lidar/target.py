@@ -25,6 +25,7 @@ from embreex.rtcore_scene import EmbreeScene
 
 from ..shadows import embree_scene
 from ..world import World
+from .kernels import inverse_doubled_areas
 from .rays import sweep_time_of_azimuth
 from .spec import LidarSpec
 
@@ -74,8 +75,9 @@ def placement_times(world: World, spec: LidarSpec, iterations: int = 3) -> np.nd
 
 
 def _arr(a) -> np.ndarray:
-    """A plain ndarray view of a trimesh TrackedArray (skips its per-access hashing)."""
-    return np.asarray(a).view(np.ndarray)
+    """A plain ndarray view of a trimesh TrackedArray (skips its per-access hashing); a plain
+    ndarray (a PartMesh's) as it is."""
+    return a if type(a) is np.ndarray else np.asarray(a).view(np.ndarray)
 
 
 def _glass_planes(v_all: np.ndarray, f_all: np.ndarray, panes: list[tuple[int, int, int, int]],
@@ -112,57 +114,65 @@ def _embree_scene(verts: list, faces: list):
     f_all = np.ascontiguousarray(np.concatenate(faces), dtype=np.int32)
     scene = embree_scene(v_all, f_all)
     scene.run(np.zeros((1, 3), np.float32), np.ones((1, 3), np.float32))  # build the BVH now
-    tri = v_all[f_all].astype(np.float64)
-    ng = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
-    return scene, v_all, f_all, (1.0 / np.maximum(ng, 1e-30)).astype(np.float32)
+    return scene, v_all, f_all, inverse_doubled_areas(v_all, f_all)
+
+
+def _placed(verts: list, poses: list, pose_of: list) -> list:
+    """Each part's vertices `verts[k]` moved by `poses[pose_of[k]]` (None: left as they are).
+    Parts of one vertex count go through one stacked product: numpy's matmul runs the same BLAS
+    product per stacked matrix as for one part alone, so the bits are the per-part product's."""
+    out = list(verts)
+    by_size: dict = {}
+    for k, j in enumerate(pose_of):
+        if j is not None:
+            by_size.setdefault(len(verts[k]), []).append(k)
+    for ks in by_size.values():
+        m = np.stack([poses[pose_of[k]] for k in ks])
+        moved = np.stack([verts[k] for k in ks]) @ m[:, :3, :3].transpose(0, 2, 1) + m[:, None, :3, 3]
+        for k, v in zip(ks, moved):
+            out[k] = v
+    return out
 
 
 def build_target(world: World, spec: LidarSpec) -> Target:
     """Concatenate every triangle in world frame (actors at their placement poses): static
     parts, then still actors, then moving actors, so one comparison finds hits to correct."""
     t_place = placement_times(world, spec)
-    verts, faces, actor, slot, mat, counts = [], [], [], [], [], []
-    mats: dict = {}
-    panes: list[tuple[int, int, int, int]] = []  # glass parts: first triangle, count, first vertex, count
-    nv = 0
-    nf_total = 0
-
-    def add(mesh, transform, aid: int, s: int, material) -> None:
-        """One part: its vertices and faces; its actor, slot and material once, expanded to its
-        triangles after the loop (one np.repeat, not three np.full per part)."""
-        nonlocal nv, nf_total
-        v = _arr(mesh.vertices)
-        if transform is not None:
-            v = v @ transform[:3, :3].T + transform[:3, 3]
-        f = _arr(mesh.faces) + nv
-        verts.append(v)
-        faces.append(f)
-        nf = len(f)
-        counts.append(nf)
-        actor.append(aid)
-        slot.append(s)
-        mat.append(mats.setdefault(material, len(mats)))
-        if material.transmittance > 0:
-            panes.append((nf_total, nf, nv, len(v)))
-        nv += len(v)
-        nf_total += nf
-
-    for part in world.static:
-        add(part.mesh, None, 0, -1, part.material)
+    parts = list(world.static)
+    actor, slot, pose_of = [0] * len(parts), [-1] * len(parts), [None] * len(parts)
+    poses = []
     placed_origin = np.zeros((len(world.actors), 3))
     moves = [spec.motion and (bool(np.any(np.asarray(a.velocity) != 0)) or a.yaw_rate != 0)
              for a in world.actors]
-    first_moving = 0
+    n_still = 0
     for moving in (False, True):
         if moving:
-            first_moving = sum(len(f) for f in faces)
+            n_still = len(parts)
         for i, (a, t) in enumerate(zip(world.actors, t_place)):
             if moves[i] != moving:
                 continue
             pose = a.pose_at(float(t))
             placed_origin[i] = pose[:3, 3]
-            for part in a.parts:
-                add(part.mesh, pose, a.id, i, part.material)
+            parts += a.parts
+            actor += [a.id] * len(a.parts)
+            slot += [i] * len(a.parts)
+            pose_of += [len(poses)] * len(a.parts)
+            poses.append(pose)
+
+    # Per part: its vertices and faces; its actor, slot and material once, expanded to its
+    # triangles below (one np.repeat each, not one np.full per part).
+    verts = _placed([_arr(p.mesh.vertices) for p in parts], poses, pose_of)
+    faces = [_arr(p.mesh.faces) for p in parts]
+    counts = [len(f) for f in faces]
+    first_moving = sum(counts[:n_still])
+    nvs = [len(v) for v in verts]
+    if faces:  # each part's faces offset to index the concatenated vertices, in one pass
+        faces = [np.concatenate(faces) + np.repeat(np.cumsum([0, *nvs[:-1]]), counts)[:, None]]
+    mats: dict = {}
+    mat = [mats.setdefault(p.material, len(mats)) for p in parts]
+    f0, v0 = np.cumsum([0, *counts]), np.cumsum([0, *nvs])
+    panes = [(int(f0[k]), counts[k], int(v0[k]), nvs[k]) for k, p in enumerate(parts)
+             if p.material.transmittance > 0]  # glass parts: first triangle, count, first vertex, count
 
     scene, v_all, f_all, inv_ng = _embree_scene(verts, faces)
     cat = (lambda xs, dt: np.repeat(np.array(xs, dt), counts))
@@ -191,6 +201,6 @@ def build_target(world: World, spec: LidarSpec) -> Target:
         placed_origin=placed_origin,
         velocity=np.array([np.asarray(a.velocity, float) for a in world.actors]).reshape(-1, 3),
         yaw_rate=np.array([float(a.yaw_rate) for a in world.actors]),
-        n_triangles=sum(len(f) for f in faces),
+        n_triangles=sum(counts),
         first_moving=first_moving,
     )
