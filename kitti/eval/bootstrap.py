@@ -27,7 +27,9 @@ SEED = 20261126
 LEVEL = 0.95
 
 
-def _central(values: np.ndarray) -> tuple[float, float]:
+def central_interval(values: np.ndarray) -> tuple[float, float]:
+    """The central LEVEL share of bootstrap draws: order statistics, no interpolation (so +-inf
+    draws stay usable)."""
     tail = 100 * (1 - LEVEL) / 2
     return (float(np.percentile(values, tail, method="lower")),
             float(np.percentile(values, 100 - tail, method="higher")))
@@ -44,12 +46,12 @@ class APDraws:
 
     def interval(self, name: str, difficulty: int = 1) -> tuple[float, float]:
         """The central 95 % of `name`'s AP over the draws."""
-        return _central(self.ap[:, self.names.index(name), difficulty])
+        return central_interval(self.ap[:, self.names.index(name), difficulty])
 
     def difference(self, a: str, b: str, difficulty: int = 1) -> tuple[float, float]:
         """The central 95 % of AP(a) - AP(b), paired draw by draw."""
         i, j = self.names.index(a), self.names.index(b)
-        return _central(self.ap[:, i, difficulty] - self.ap[:, j, difficulty])
+        return central_interval(self.ap[:, i, difficulty] - self.ap[:, j, difficulty])
 
 
 def draw_frames(ids: Sequence[str], draws: int = DRAWS, seed: int = SEED) -> np.ndarray:

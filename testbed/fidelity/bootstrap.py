@@ -17,12 +17,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from kitti.eval.bootstrap import DRAWS, LEVEL, SEED, central_interval
+
 from .catalog import STATS, Stat
 from .stats import DatasetStats
 
-DRAWS = 1000
-SEED = 20261126
-LEVEL = 0.95
 # A statistic that cannot be evaluated (no object in its bin) in more draws than this share gets
 # no interval.
 MAX_UNDEFINED = 1.0 - LEVEL
@@ -30,8 +29,9 @@ MAX_UNDEFINED = 1.0 - LEVEL
 
 @dataclass(frozen=True)
 class Interval:
-    """The central LEVEL share of the bootstrap draws of a relative difference (order
-    statistics, no interpolation: a draw where real is 0 and sim is not counts as +-inf)."""
+    """The central LEVEL share of the bootstrap draws of a relative difference
+    (kitti.eval.bootstrap.central_interval: a draw where real is 0 and sim is not counts as
+    +-inf)."""
 
     lo: float
     hi: float
@@ -70,12 +70,7 @@ def intervals(sim: DatasetStats, real: DatasetStats, draws: int = DRAWS, seed: i
             b = real.resample(rng.integers(len(real.frames), size=len(real.frames)))
             rel[d] = [relative_difference(s.value(a), s.value(b)) for s in stats]
     out: dict[str, Interval | None] = {}
-    tail = 100 * (1 - LEVEL) / 2
     for j, s in enumerate(stats):
         col = rel[:, j][~np.isnan(rel[:, j])]
-        if len(col) < (1 - MAX_UNDEFINED) * draws:
-            out[s.key] = None
-            continue
-        out[s.key] = Interval(float(np.percentile(col, tail, method="lower")),
-                              float(np.percentile(col, 100 - tail, method="higher")))
+        out[s.key] = Interval(*central_interval(col)) if len(col) >= (1 - MAX_UNDEFINED) * draws else None
     return out
