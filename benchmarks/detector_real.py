@@ -134,12 +134,12 @@ def main() -> None:
     print("|---|---|---|")
     near, objects, preds = [], [], {}
     modes = {"on": [True], "off": [False], "both": [False, True]}[args.mirror]
+    split = Path(args.data) / "ImageSets" / f"{args.split}.txt" if args.split else None
     runs = [(w, m) for w in args.weights for m in modes]
     for i, (w, mirror) in enumerate(runs):
         pred_dir = args.out / f"pred_{i}"
         pred = detect_dataset(args.data, pred_dir, w, split=args.split, progress=False, mirror=mirror)
         w = f"{w} ({'mirrored' if mirror else 'one pass'})"
-        split = Path(args.data) / "ImageSets" / f"{args.split}.txt" if args.split else None
         strict = evaluate_folders(Path(args.data) / "training" / "label_2", pred_dir, split,
                                   classes=["Car"], progress=False)
         ap7 = strict.ap["Car"]["2d"]["R40"]

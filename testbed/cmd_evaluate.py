@@ -46,17 +46,19 @@ def evaluate(gt_dir: Path, pred_dir: Path, split: Path | None, json_out: Path | 
     """Evaluate detections in PRED against truth in GT: 2D, bird's-eye, 3D and AOS, AP|R11 and
     AP|R40, easy/moderate/hard, exactly as the KITTI devkit; plus AP per distance bin,
     matched-pair errors and the volumetric metrics."""
-    from kitti.eval import evaluate_folders
+    from kitti.eval import evaluate
     from kitti.eval.bootstrap import interval_table
+    from kitti.eval.folders import load_folders
     from kitti.io import atomic_write_text
 
     names = [c.strip() for c in classes.split(",") if c.strip()]
     try:
-        res = evaluate_folders(gt_dir, pred_dir, split, classes=names, range_bins=range_bins,
-                               match_iou=match_iou, min_score=min_score, max_distance=max_distance)
+        gt, dt = load_folders(gt_dir, pred_dir, split)
+        res = evaluate(gt, dt, classes=names, range_bins=range_bins, progress=True,
+                       match_iou=match_iou, min_score=min_score, max_distance=max_distance)
         doc = res.to_json()
         if draws:
-            text, doc["bootstrap"] = interval_table(gt_dir, pred_dir, split, res, draws)
+            text, doc["bootstrap"] = interval_table(gt, dt, res, draws)
     except ValueError as e:
         raise click.ClickException(str(e)) from None
     click.echo(res.table(), nl=False)

@@ -11,14 +11,11 @@ points: read a real figure with its interval."""
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Mapping, Sequence
 
 import numpy as np
 
 from ..labels import Object3D
-from ..splits import read_split
-from .annotations import load_annotations
 from .evaluate import METRICS, _progress, evaluate
 from .report import EvalResult
 
@@ -94,13 +91,10 @@ def bootstrap_ap(gt: Mapping[str, Sequence[Object3D]],
     return {k: APDraws(names, k[0], k[1], a) for k, a in ap.items() if not np.isnan(a).any()}
 
 
-def interval_table(gt_dir: Path, pred_dir: Path, split: Path | None, res: EvalResult,
-                   draws: int = DRAWS) -> tuple[str, dict]:
-    """`testbed evaluate --bootstrap`: every AP|R40 of `res` (strict IoU) with its 95 % interval
-    over draws of its frames, as a printout and as JSON."""
-    ids = read_split(split) if split else None
-    gt = load_annotations(gt_dir, ids, progress=False)
-    dt = load_annotations(pred_dir, list(gt), missing_ok=True, progress=False)
+def interval_table(gt: Mapping[str, Sequence[Object3D]], dt: Mapping[str, Sequence[Object3D]],
+                   res: EvalResult, draws: int = DRAWS) -> tuple[str, dict]:
+    """`testbed evaluate --bootstrap`: every AP|R40 of `res` (the evaluation of `dt` against
+    `gt`, strict IoU) with its 95 % interval over draws of the frames, as a printout and JSON."""
     metrics = sorted({m for c in res.classes for m in res.ap[c]}, key=list(METRICS).index)
     boot = bootstrap_ap(gt, {"pred": dt}, res.classes, metrics, draws=draws, progress=True)
     lines = [f"AP|R40 with its {LEVEL:.0%} interval over {draws} bootstrap draws of the {len(gt)} "
