@@ -38,11 +38,12 @@ import numpy as np  # noqa: E402
 import pyrender  # noqa: E402
 from pyrender.constants import RenderFlags  # noqa: E402
 
-from . import textures  # noqa: E402
+from . import facets, textures  # noqa: E402
 from .camera import LUMA  # noqa: E402
 from .factors import factor_rng  # noqa: E402
 from .meshes import EMISSIVE  # noqa: E402
 from .shadows import Occluders, Reach, sky_occlusion, sun_shadow  # noqa: E402
+from .texture_layout import FACADE_KINDS, facade_uv, static_layout  # noqa: E402
 from .world import Part, World  # noqa: E402
 
 ZNEAR, ZFAR = 0.3, 400.0
@@ -189,49 +190,6 @@ def _textured(kind: str, variant: int) -> pyrender.MetallicRoughnessMaterial:
     return _TEXTURED[key]
 
 
-def _shared(parts: list[Part]) -> tuple[np.ndarray, np.ndarray]:
-    """(V, 3) vertices and (F, 3) faces of all parts in part order, the faces indexing the joint
-    vertices (numpy, no trimesh caches)."""
-    vs = [np.asarray(p.mesh.vertices).view(np.ndarray) for p in parts]
-    fs = [np.asarray(p.mesh.faces).view(np.ndarray) for p in parts]
-    return np.concatenate(vs), _joint_faces(fs, [len(v) for v in vs])
-
-
-def _joint_faces(faces: list[np.ndarray], n_vertices: list[int]) -> np.ndarray:
-    """Faces of several meshes indexing their concatenated vertices."""
-    first = np.cumsum([0, *n_vertices[:-1]])
-    return np.concatenate(faces) + np.repeat(first, [len(f) for f in faces])[:, None]
-
-
-def _triangles(parts: list[Part]) -> tuple[np.ndarray, np.ndarray]:
-    """(F, 3, 3) triangles and (F, 3) unit normals of all parts."""
-    return _faceted(*_shared(parts))
-
-
-def _faceted(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(F, 3, 3) triangles and (F, 3) unit normals of a mesh."""
-    tris = np.take(vertices, faces, axis=0)  # vertices[faces], gathered faster
-    return tris, _normals(tris)
-
-
-def _lengths(v: np.ndarray) -> np.ndarray:
-    """Euclidean lengths of (..., 3) vectors: np.linalg.norm's sum of squares in its order (the
-    same bits), component by component, which numpy runs faster than a reduction over a short axis."""
-    x, y, z = v[..., 0], v[..., 1], v[..., 2]
-    return np.sqrt(x * x + y * y + z * z)
-
-
-def _normals(tris: np.ndarray) -> np.ndarray:
-    """(F, 3) unit normals of (F, 3, 3) triangles. The edges and np.cross's products and
-    differences, in its order (the same bits), one coordinate at a time: numpy's loops then run
-    over all faces, not three numbers."""
-    a0, a1, a2 = (tris[:, 1, j] - tris[:, 0, j] for j in range(3))
-    b0, b1, b2 = (tris[:, 2, j] - tris[:, 0, j] for j in range(3))
-    n = np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=1)
-    n /= np.maximum(_lengths(n), 1e-300)[:, None]
-    return n
-
-
 def _primitive(tris: np.ndarray, normals: np.ndarray | None, rgba: np.ndarray | None, material,
                uv: np.ndarray | None = None) -> pyrender.Primitive:
     """Faces with their vertices unshared, a colour per face (F, 4) or per corner (F, 3, 4), or
@@ -330,7 +288,7 @@ class _Shader:
     def _mirror(self, centres: np.ndarray, normals: np.ndarray) -> np.ndarray:
         """Radiance a clear coat or pane reflects towards the eye: sky or ground, and the sun."""
         view = self.eye - centres
-        view /= np.maximum(_lengths(view), 1e-9)[:, None]
+        view /= np.maximum(facets.lengths(view), 1e-9)[:, None]
         cos = np.einsum("ij,ij->i", normals, view)
         n = np.where(cos[:, None] < 0, -normals, normals)  # double-sided
         cos = np.abs(cos)
@@ -340,7 +298,7 @@ class _Shader:
         up = np.flatnonzero(r[:, 2] > 0)
         env[up] = _sky_radiance(r[up, 2])
         half = view + self.sun
-        half /= np.maximum(_lengths(half), 1e-9)[:, None]
+        half /= np.maximum(facets.lengths(half), 1e-9)[:, None]
         glint = np.clip(np.einsum("ij,ij->i", n, half), 0.0, 1.0) ** HIGHLIGHT_EXPONENT
         return fresnel[:, None] * (env + glint[:, None] * self.sun_rgb)
 
@@ -365,8 +323,8 @@ def _actor_meshes(bodies: list[tuple[list[Part], np.ndarray, bool]], shader: _Sh
         return ([], None, Occluders(np.zeros((0, 3, 3), np.float32), np.zeros(0, np.float32)),
                 Reach(np.zeros((0, 4, 4)), np.zeros((0, 3)), np.zeros((0, 3))))
     parts = [p for b, _, _ in bodies for p in b]
-    vertices, faces = _shared(parts)  # each part in its actor's frame
-    own_tris, own_n = _faceted(vertices, faces)  # row by row: the same bits as actor by actor
+    vertices, faces = facets.shared(parts)  # each part in its actor's frame
+    own_tris, own_n = facets.faceted(vertices, faces)  # row by row: the same bits as actor by actor
     counts = [sum(len(p.mesh.faces) for p in b) for b, _, _ in bodies]  # faces per actor
     ends = np.cumsum(counts)[:-1]
     v_starts = np.cumsum([0, *(sum(len(p.mesh.vertices) for p in b) for b, _, _ in bodies)])[:-1]
@@ -483,39 +441,13 @@ def _bent_normals(face_counts: list[int], tris: np.ndarray, normals: np.ndarray)
     owner = np.repeat(np.arange(len(face_counts)), face_counts)
     centre, half = ((lo + hi) / 2)[owner], np.maximum((hi - lo) / 2, 1e-6)[owner]
     bent = normals[:, None, :] + BEND * (tris - centre[:, None, :]) / half[:, None, :]
-    return bent / _lengths(bent)[..., None]
+    return bent / facets.lengths(bent)[..., None]
 
 
 def _lamp_mesh(part: Part, material) -> pyrender.Mesh:
     """An emissive lamp at night: white faces under an emissive material (actor frame)."""
-    tris, normals = _triangles([part])
+    tris, normals = facets.triangles([part])
     return pyrender.Mesh([_primitive(tris, normals, np.ones((len(tris), 4)), material)])
-
-
-_WALL_DIRECTION, _WALL_OFFSET = 1e-4, 0.01  # faces this close in direction (unit vector) and offset (m) share a wall
-
-
-def _facade_uv(tris: np.ndarray, normals: np.ndarray, tile: tuple[float, float],
-               shift: float) -> np.ndarray:
-    """Texture coordinates of vertical walls: a whole number of window bays across each wall,
-    storeys counted from the wall's lowest point. A wall is every face in one vertical plane (the
-    same horizontal normal and offset): a draped wall (simgen.relief) is split along its length
-    and its foot follows the road, so per-triangle extents would cut the windows apart."""
-    t = np.c_[-normals[:, 1], normals[:, 0]]
-    t /= np.maximum(np.linalg.norm(t, axis=1, keepdims=True), 1e-9)
-    s = np.einsum("fkj,fj->fk", tris[..., :2], t)
-    offset = np.einsum("fj,fj->f", tris[:, 0, :2], np.c_[t[:, 1], -t[:, 0]])
-    key = np.c_[np.round(t / _WALL_DIRECTION), np.round(offset / _WALL_OFFSET)] + 0.0  # no -0.0
-    wall = np.unique(key, axis=0, return_inverse=True)[1].ravel()
-    lo, hi, foot = (np.full(wall.max() + 1, x) for x in (np.inf, -np.inf, np.inf))
-    np.minimum.at(lo, wall, s.min(axis=1))
-    np.maximum.at(hi, wall, s.max(axis=1))
-    np.minimum.at(foot, wall, tris[..., 2].min(axis=1))
-    s0, width = lo[wall][:, None], (hi - lo)[wall][:, None]
-    bays = np.maximum(1.0, np.round(width / textures.BAY_M))
-    u = (s - s0) / np.maximum(width, 1e-9) * bays * textures.BAY_M / tile[0] + shift
-    v = (tris[..., 2] - foot[wall][:, None]) / tile[1]
-    return np.stack([u, v], axis=2)
 
 
 def _planar_uv(tris: np.ndarray, normals: np.ndarray, tile: tuple[float, float],
@@ -537,41 +469,25 @@ def _planar_uv(tris: np.ndarray, normals: np.ndarray, tile: tuple[float, float],
 def _static_mesh(parts: list[Part], shader: _Shader, world: World) -> tuple[pyrender.Mesh, Occluders]:
     """The static world, one primitive per texture tile (and one for untextured faces), and its
     triangles as shadow casters."""
-    rng = factor_rng(world.seed, world.frame_index, "appearance")
-    look = world.appearance
-    gain = np.exp(rng.normal(0.0, look.colour_jitter, (len(parts), 3)))
-    vertices, faces = _shared(parts)
-    tris, normals = _faceted(vertices, faces)
-    rgba = shader.colors(parts, tris, normals, False, gain)
+    vertices, faces = facets.shared(parts)
+    tris, normals = facets.faceted(vertices, faces)
+    layout = static_layout(world, parts, normals)
+    rgba = shader.colors(parts, tris, normals, False, layout.gain)
     casters = Occluders.of_parts(parts, tris, (vertices, faces))
-    if shader.mode != "lit" or not look.textures:
+    if shader.mode != "lit" or not world.appearance.textures:
         return pyrender.Mesh([_primitive(tris, shader.gl_normals(normals), rgba, _PLAIN)]), casters
-    ends = np.cumsum([len(p.mesh.faces) for p in parts])
+    first = np.cumsum([0] + [len(p.mesh.faces) for p in parts])
     prims, plain = [], np.ones(len(tris), bool)
-    for i, part in enumerate(parts):
-        name = part.material.name
-        own = slice(ends[i] - len(part.mesh.faces), ends[i])  # the part's faces
-        if name == "facade":
-            vertical = np.abs(normals[own, 2]) < 0.7
-            wall = "brick" if rng.uniform() < 0.4 else "plaster"
-            groups = [(vertical, wall), (~vertical, "roof")]
-        elif name in textures.OF_MATERIAL:
-            groups = [(np.ones(len(part.mesh.faces), bool), textures.OF_MATERIAL[name])]
-        else:
-            continue
+    for w in layout.wearing:
+        own = slice(first[w.part], first[w.part + 1])  # the part's faces
         plain[own] = False
-        for sel, kind in groups:
-            if not sel.any():
-                continue
-            t, n = tris[own][sel], normals[own][sel]
-            variant = int(rng.integers(textures.VARIANTS))
-            tile = tuple(np.asarray(textures.TILE_M[kind]) * rng.uniform(0.85, 1.15))
-            if kind in ("brick", "plaster"):
-                uv = _facade_uv(t, n, tile, 0.5 * rng.integers(2))
-            else:
-                uv = _planar_uv(t, n, tile, rng.uniform(0, 1, 2))
-            colour = rgba[own][sel] * np.array([textures.MAX_GAIN] * 3 + [1.0])
-            prims.append(_primitive(t, None, colour, _textured(kind, variant), uv))  # lit: flat
+        t, n = tris[own][w.faces], normals[own][w.faces]
+        if w.kind in FACADE_KINDS:
+            uv = facade_uv(t, n, w.tile, w.shift)
+        else:
+            uv = _planar_uv(t, n, w.tile, w.shift)
+        colour = rgba[own][w.faces] * np.array([textures.MAX_GAIN] * 3 + [1.0])
+        prims.append(_primitive(t, None, colour, _textured(w.kind, w.variant), uv))  # lit: flat
     if plain.any():
         prims.append(_primitive(tris[plain], None, rgba[plain], _PLAIN))
     return pyrender.Mesh(prims), casters

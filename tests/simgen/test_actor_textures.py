@@ -11,9 +11,10 @@ import pyrender
 import pytest
 
 from simgen import textures
+from simgen.facets import triangles
 from simgen.materials import GLASS, PLATE, TRIM
 from simgen.meshes import box, paint
-from simgen.render import _texture_coordinates, _triangles, build_scene, render
+from simgen.render import _texture_coordinates, build_scene, render
 from simgen.sample import sample_world
 from simgen.spec import load_spec
 from simgen.world import Part
@@ -72,7 +73,7 @@ def _actor() -> list[Part]:
 
 def test_texture_coordinates_by_hand():
     parts = _actor()
-    tris, normals = _triangles(parts)
+    tris, normals = triangles(parts)
     shift, plate = 0.37, 2
     worn = _texture_coordinates(parts, tris, normals, np.full(len(tris), shift), np.full(len(tris), plate))
     # Each textured part's faces, in order; the black bumper wears none.

@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from simgen.facets import triangles
 from simgen.meshes import box
-from simgen.render import BEND, PANEL_TURN, _bent_normals, _triangles
+from simgen.render import BEND, PANEL_TURN, _bent_normals
 from simgen.world import Material, Part
 
 
@@ -15,7 +16,7 @@ def _part(x0, x1, y0, y1, z0, z1) -> Part:
 
 def test_a_box_face_turns_through_the_panel_turn_between_opposite_edges():
     parts = [_part(-2.0, 2.0, -0.9, 0.9, 0.2, 1.4)]  # a car-sized slab, off the origin in z
-    tris, normals = _triangles(parts)
+    tris, normals = triangles(parts)
     bent = _bent_normals([12], tris, normals)
     side = np.flatnonzero(normals[:, 1] > 0.99)  # the +y face (a door's side)
     assert len(side) == 2
@@ -34,7 +35,7 @@ def test_each_part_bends_about_its_own_box():
     """Two parts of one actor: the same face of each has the same corner normals, wherever the
     part sits and however large it is (half extents, not metres)."""
     a, b = _part(0.0, 1.0, 0.0, 1.0, 0.0, 1.0), _part(5.0, 9.0, -3.0, 1.0, 2.0, 2.5)
-    tris, normals = _triangles([a, b])
+    tris, normals = triangles([a, b])
     bent = _bent_normals([12, 12], tris, normals)
     na = len(a.mesh.faces)
     np.testing.assert_allclose(bent[:na], bent[na:], atol=1e-12)

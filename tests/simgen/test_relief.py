@@ -219,7 +219,7 @@ def test_a_draped_wall_wears_one_continuous_facade():
     (per-triangle extents cut the windows apart along the diagonals)."""
     import trimesh
 
-    from simgen.render import _facade_uv
+    from simgen.texture_layout import facade_uv
     from simgen.textures import BAY_M
 
     road = RoadLayout(0.0, 2, 3.5, 0, 3.0, 0.15, False, -20.0, 160.0,
@@ -231,7 +231,7 @@ def test_a_draped_wall_wears_one_continuous_facade():
     faces = np.asarray(out.faces)[walls]
     tris = np.asarray(out.vertices)[faces]
     tile = (6.0, 3.2)
-    uv = _facade_uv(tris, out.face_normals[walls], tile, 0.5)
+    uv = facade_uv(tris, out.face_normals[walls], tile, 0.5)
     assert len(faces) > 8  # the long walls were split
     for vertex in np.unique(faces):
         at = faces == vertex
