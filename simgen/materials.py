@@ -107,6 +107,19 @@ SIGN_BLUE = Material("sign_blue", (0.002, 0.040, 0.165), 12.6, incidence_exponen
 # Brick and rendered plaster: 0.4-0.6 at 905 nm (ECOSTRESS library: red brick about 0.45,
 # limestone render about 0.6); the lower end.
 FACADE_REFLECTIVITY = 0.45
+# Windows (the façade tiles' windows, simgen.textures.Window; the LiDAR reads them through
+# simgen.lidar.windows). Double glazing with a thermal low-E coat: such coats pass the solar near
+# infrared (they turn from transmitting to reflecting near 2 um; solar-control coats, turning
+# near 0.7 um, would reflect the beam), so a unit passes about what two clear float panes do,
+# 0.9 each at 905 nm (see GLASS below), less a few per cent for the coat: 0.75 one way at normal
+# incidence, falling towards grazing as four faces' Fresnel loss rises. The beam ends inside:
+# on a curtain (the textiles' 0.55, `textile_reflectivity`), or in the room, whose walls, floor
+# and furniture are read as clutter (no fall-off with incidence, as a car's interior): no measured
+# figure for a room as a whole was found; white wall paint reads 0.8-0.9 at 905 nm (titanium
+# white), wood and textiles 0.4-0.6 (FENCE, clothes), dark floors and voids less: 0.5.
+WINDOW_TRANSMITTANCE = 0.75
+ROOM_REFLECTIVITY = 0.5
+CURTAIN_REFLECTIVITY = 0.55
 
 # --- Vehicles. -----------------------------------------------------------------------------
 # Green-tinted automotive glass: ferrous iron absorbs around 1000 nm, so a pane passes about

@@ -16,6 +16,7 @@ the construction standards or common practice named beside them.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from functools import cache
 
 import numpy as np
@@ -144,12 +145,31 @@ def _metal(rng: np.random.Generator) -> np.ndarray:
     return np.repeat(m[..., None], 3, axis=2)
 
 
-def _windows(rng: np.random.Generator, base: np.ndarray) -> np.ndarray:
+@dataclass(frozen=True)
+class Window:
+    """One window of a façade tile, in tile units (u across from the tile's left, v up from its
+    foot), for the LiDAR (simgen.lidar.windows): where the glass is, the mullion across it, a
+    curtain behind it or not, and the room behind it (its bay, its storey's floor and ceiling)."""
+
+    glass: tuple[float, float, float, float]  # u0, u1, v0, v1
+    mullion: tuple[float, float]  # u0, u1
+    curtain: bool
+    room: tuple[float, float, float, float]  # u0, u1, floor v, ceiling v
+
+
+# A storey's clear height: the storey of 3.2 m less a floor of 0.3 m (a 0.2 m concrete slab
+# under screed and its insulation; German building codes ask 2.4 m of clear height in rooms).
+CLEAR_M = STOREY_M - 0.3
+
+
+def _windows(rng: np.random.Generator, base: np.ndarray, record: list | None) -> np.ndarray:
     """Two bays by two storeys of windows on a wall multiplier: 1.2-1.6 m wide, sill 0.9 m and
     head 2.6 m above the floor (common residential window sizes), dark glass brighter towards
-    the top (the sky it mirrors), a light frame, a sill; curtains in some."""
+    the top (the sky it mirrors), a light frame, a sill; curtains in some. Each is appended to
+    `record` (a list; None: not recorded)."""
     m = base.copy()
-    px_u, px_v = SIZE / TILE_M["plaster"][0], SIZE / TILE_M["plaster"][1]
+    tu, tv = TILE_M["plaster"]
+    px_u, px_v = SIZE / tu, SIZE / tv
     for bay in range(2):
         for storey in range(2):
             w = rng.uniform(1.2, 1.6)
@@ -162,21 +182,27 @@ def _windows(rng: np.random.Generator, base: np.ndarray) -> np.ndarray:
             m[top - f:bot + f, u0 - f:u1 + f] = 1.35
             glass = np.linspace(0.45, 0.12, bot - top)[:, None, None] * rng.uniform(0.7, 1.3)
             m[top:bot, u0:u1] = glass * np.array([0.95, 1.0, 1.1])
-            if rng.uniform() < 0.4:  # curtains
+            curtain = bool(rng.uniform() < 0.4)
+            if curtain:
                 m[top:bot, u0:u1] = np.maximum(m[top:bot, u0:u1], rng.uniform(0.5, 0.9))
             mid = (u0 + u1) // 2
             m[top:bot, mid - 2:mid + 2] = 1.3  # mullion
             m[bot + f:bot + 3 * f, u0 - 2 * f:u1 + 2 * f] = 1.15  # sill
+            if record is not None:
+                record.append(Window((u0 / SIZE, u1 / SIZE, (SIZE - bot) / SIZE, (SIZE - top) / SIZE),
+                                      ((mid - 2) / SIZE, (mid + 2) / SIZE), curtain,
+                                      (bay * BAY_M / tu, (bay + 1) * BAY_M / tu, storey * STOREY_M / tv,
+                                       (storey * STOREY_M + CLEAR_M) / tv)))
     return m
 
 
-def _plaster(rng: np.random.Generator) -> np.ndarray:
+def _plaster(rng: np.random.Generator, record: list | None = None) -> np.ndarray:
     """Rendered wall with weathering streaks running down, and windows."""
     wall = 1.0 + 0.08 * _grain(rng) + 0.08 * _fractal(rng, 1.8, aspect=4.0)
-    return _windows(rng, np.repeat(wall[..., None], 3, axis=2))
+    return _windows(rng, np.repeat(wall[..., None], 3, axis=2), record)
 
 
-def _brick(rng: np.random.Generator) -> np.ndarray:
+def _brick(rng: np.random.Generator, record: list | None = None) -> np.ndarray:
     """Stretcher bond of 240 x 71 mm bricks (German NF) in 10 mm mortar joints, and windows."""
     px = SIZE / TILE_M["brick"][0]
     # A whole number of courses and bricks per tile, so that the bond repeats without a seam.
@@ -189,7 +215,7 @@ def _brick(rng: np.random.Generator) -> np.ndarray:
     mortar = ((v % course) < 0.010 * px) | (((u + shift) % length) < 0.010 * px)
     tone = rng.normal(1.0, 0.10, (row.max() + 1, col.max() + 2))[row, col]
     wall = np.where(mortar, 1.35, tone * (1.0 + 0.06 * _grain(rng)))
-    return _windows(rng, np.repeat(wall[..., None], 3, axis=2))
+    return _windows(rng, np.repeat(wall[..., None], 3, axis=2), record)
 
 
 def _roof(rng: np.random.Generator) -> np.ndarray:
@@ -296,10 +322,19 @@ ACTOR_MAKERS = {"glass": _glass, "paint": _paint, "plate": _plates}
 OF_ACTOR_MATERIAL = {"glass": "glass", "paint": "paint", "plate": "plate"}
 
 
-@cache
 def tile(kind: str, variant: int) -> np.ndarray:
     """(SIZE, SIZE, 3) uint8 multipliers / MAX_GAIN of one texture variant, normalised to a mean
     multiplier of 1 per channel."""
+    return _made(kind, variant)[0]
+
+
+def windows(kind: str, variant: int) -> tuple[Window, ...]:
+    """The windows of one façade tile (none for the other kinds)."""
+    return _made(kind, variant)[1]
+
+
+@cache
+def _made(kind: str, variant: int) -> tuple[np.ndarray, tuple[Window, ...]]:
     if kind in _MAKERS:
         index, make = sorted(_MAKERS).index(kind), _MAKERS[kind]
     elif kind in ACTOR_MAKERS:
@@ -307,7 +342,8 @@ def tile(kind: str, variant: int) -> np.ndarray:
     else:
         raise KeyError(f"no texture kind {kind!r} (known: {sorted(_MAKERS) + sorted(ACTOR_MAKERS)})")
     rng = np.random.default_rng([index, int(variant), 7919])
-    m = np.clip(make(rng), 0.0, None)
+    made: list[Window] = []
+    m = np.clip(make(rng, made) if make in (_plaster, _brick) else make(rng), 0.0, None)
     for _ in range(4):  # mean one per channel, after the clip at MAX_GAIN
         m = np.clip(m / m.reshape(-1, 3).mean(axis=0), 0.0, MAX_GAIN)
-    return np.clip(np.round(m / MAX_GAIN * 255.0), 0, 255).astype(np.uint8)
+    return np.clip(np.round(m / MAX_GAIN * 255.0), 0, 255).astype(np.uint8), tuple(made)

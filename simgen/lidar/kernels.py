@@ -115,6 +115,75 @@ def pass_prepare(cand, u, prim, tfar, ng, origins, d_w, inv_ng, tri_mat, mat_t, 
 
 
 @numba.njit(cache=True, nogil=True)
+def window_returns(prim, tfar, d_w, origins, tri_wall, walls, panes, n_panes, loss, refl, t_unit, r0,
+                   depth, gap, room_refl, curtain_refl):
+    """Rays whose hit lies on a façade's window (simgen.lidar.windows: per wall face `walls` row
+    tx, ty, s0, per_s, shift, foot, tile_v, pane set; per set `panes` rows u0, u1, v0, v1 of
+    the glass, the mullion's u0, u1, curtain, the room's u0, u1, floor v, ceiling v, in tile
+    units) go through the glazing (`loss`, in place, takes its two-way transmittance: `t_unit` at
+    normal incidence times four faces' Fresnel rise, Schlick's with `r0`) and end `gap` behind
+    it on a curtain (`refl` = curtain_refl x cos incidence, Lambertian) or in the room: on its
+    back wall `depth` behind the glass, its side walls (the bay's edges), floor or ceiling,
+    whichever the ray meets first (`refl` = room_refl, clutter). `tfar` moves there. Returns
+    how many rays met a window."""
+    hits = 0
+    for i in range(prim.shape[0]):
+        p = prim[i]
+        if p < 0:
+            continue
+        w = tri_wall[p]
+        if w < 0:
+            continue
+        s = tfar[i]
+        dx, dy, dz = np.float64(d_w[i, 0]), np.float64(d_w[i, 1]), np.float64(d_w[i, 2])
+        x = origins[i, 0] + s * dx
+        y = origins[i, 1] + s * dy
+        z = origins[i, 2] + s * dz
+        tx, ty, per_s = walls[w, 0], walls[w, 1], walls[w, 3]
+        u = (tx * x + ty * y - walls[w, 2]) * per_s + walls[w, 4]
+        v = (z - walls[w, 5]) / walls[w, 6]
+        if v < 0.0:
+            continue
+        fu, fv = u - math.floor(u), v - math.floor(v)
+        k = int(walls[w, 7])
+        j = -1
+        for q in range(n_panes[k]):
+            if (panes[k, q, 0] <= fu < panes[k, q, 1] and panes[k, q, 2] <= fv < panes[k, q, 3]
+                    and not panes[k, q, 4] <= fu < panes[k, q, 5]):
+                j = q
+                break
+        if j < 0:
+            continue
+        c = abs(dx * ty - dy * tx)  # the wall's normal is (ty, -tx, 0)
+        if c < 1e-6:
+            continue
+        fresnel = r0 + (1.0 - r0) * (1.0 - min(c, 1.0)) ** 5
+        q2 = ((1.0 - fresnel) / (1.0 - r0)) ** 2
+        tr = t_unit * q2 * q2
+        if panes[k, j, 6] > 0.0:
+            path = gap / c
+            rho = curtain_refl * c
+        else:
+            path = depth / c
+            du = (dx * tx + dy * ty) * per_s  # tile units of u per metre of path
+            if du > 0.0:
+                path = min(path, (panes[k, j, 8] - fu) / du)
+            elif du < 0.0:
+                path = min(path, (panes[k, j, 7] - fu) / du)
+            dv = dz / walls[w, 6]
+            if dv > 0.0:
+                path = min(path, (panes[k, j, 10] - fv) / dv)
+            elif dv < 0.0:
+                path = min(path, (panes[k, j, 9] - fv) / dv)
+            rho = room_refl
+        tfar[i] = s + np.float32(path)
+        loss[i] *= np.float32(tr * tr)
+        refl[i] = np.float32(rho)
+        hits += 1
+    return hits
+
+
+@numba.njit(cache=True, nogil=True)
 def pass_apply(sel, start, prim_q, tfar_q, ng_q, prim, tfar, ng, passes):
     """One round of pass-through, after its query: the rays `sel` take their new hit's triangle,
     range from the sensor and Ng row (in place; -1: the ray met nothing and returns nothing).
@@ -164,7 +233,7 @@ def _moved(i, s, rr, thr, ng, d_w, origins, ray_time, placed_time, placed_origin
 
 
 @numba.njit(cache=True, nogil=True)
-def detect_rays(prim, tfar, ng, d_w, origins, inv_ng, loss, tri_refl, tri_expo, tri_actor, need,
+def detect_rays(prim, tfar, ng, d_w, origins, inv_ng, loss, refl, tri_refl, tri_expo, tri_actor, need,
                 ext, u, beams, columns, drop, zero, detect, min_range, max_range, motion,
                 first_moving, tri_slot, ray_time, placed_time, placed_origin, velocity, yaw_rate,
                 gamma):
@@ -178,7 +247,9 @@ def detect_rays(prim, tfar, ng, d_w, origins, inv_ng, loss, tri_refl, tri_expo, 
     (n . delta) / (n . d) (exact for pure translation, first order in the small yaw), in
     float64; the threshold follows to first order, need * (1 + gamma * shift / range) (the
     shift is centimetres: the actor is placed when the head faces it);
-    echo: rho_eff = reflectivity * |cos incidence| ** k (* `loss`, glass; zero-length: none);
+    echo: rho_eff = reflectivity * |cos incidence| ** k (* `loss`, glass; zero-length: none), or
+    where `refl` is not negative (zero-length: nowhere) refl * loss (a beam that ended behind a
+    window: window_returns);
     detection: rho_eff (* `ext`, two-way extinction; zero-length: clear air) >= `need`, the
     threshold at the true range; then dropped where the ray's uniform `u` is below its laser's
     rate `drop`; the true range must lie in [min_range, max_range].
@@ -194,7 +265,7 @@ def detect_rays(prim, tfar, ng, d_w, origins, inv_ng, loss, tri_refl, tri_expo, 
     need_o = np.empty(n, np.float32)
     aid_o = np.empty(n, np.int32)
     v_o = np.empty(n, np.float32)
-    has_loss, has_ext = loss.shape[0] > 0, ext.shape[0] > 0
+    has_loss, has_refl, has_ext = loss.shape[0] > 0, refl.shape[0] > 0, ext.shape[0] > 0
     one = np.float32(1.0)
     k = 0
     for ring in range(beams):
@@ -210,7 +281,9 @@ def detect_rays(prim, tfar, ng, d_w, origins, inv_ng, loss, tri_refl, tri_expo, 
                 rr, thr = _moved(i, tri_slot[t], rr, thr, ng, d_w, origins, ray_time, placed_time,
                                  placed_origin, velocity, yaw_rate, gamma)
             e = tri_expo[t]
-            if e == 0.0:
+            if has_refl and refl[i] >= 0.0:
+                rho = refl[i]
+            elif e == 0.0:
                 rho = tri_refl[t]
             else:
                 c = abs(ng[i, 0] * d_w[i, 0] + ng[i, 1] * d_w[i, 1] + ng[i, 2] * d_w[i, 2]) * inv_ng[t]

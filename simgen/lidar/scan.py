@@ -7,7 +7,9 @@ Per ray, in order:
    specularly, away from the sensor, so its own echo is never reported) and the echo from behind
    loses the pane's two-way transmittance; a beam that meets a porous material (leaves) goes on
    with probability `porosity`. Those rays are cast again, batched, from PASS_STEP behind the
-   hit, up to MAX_PASSES surfaces; a ray that goes on into nothing returns nothing;
+   hit, up to MAX_PASSES surfaces; a ray that goes on into nothing returns nothing. A beam that
+   ends on a façade inside one of its windows (the camera's façade tiles show where: windows.py)
+   goes through the glazing and ends behind it, on a curtain or in the room (`_through_windows`);
 3. motion correction for hits on moving actors (see target.py);
 4. the echo strength rho_eff = reflectivity * cos(incidence) ** k * (glass losses): the
    material's reading at its incidence (values and sources: simgen.materials);
@@ -41,13 +43,15 @@ from functools import lru_cache
 
 import numpy as np
 
+from ..materials import CURTAIN_REFLECTIVITY, ROOM_REFLECTIVITY, WINDOW_TRANSMITTANCE
 from ..world import World
-from .kernels import detect_rays, pass_apply, pass_candidates, pass_prepare, read_returns
+from .kernels import detect_rays, pass_apply, pass_candidates, pass_prepare, read_returns, window_returns
 from .platform import hidden_rays
 from .rays import RayTable, ray_table
 from .spec import LidarSpec
 from .target import Target, build_target
 from .weather import clutter, total_extinction
+from .windows import CURTAIN_GAP_M, ROOM_DEPTH_M
 
 CLUTTER_ID = -1
 # A ray that goes on is cast again from just behind the surface it leaves (float32 positions out
@@ -137,9 +141,24 @@ def _pass_through(tgt: Target, spec: LidarSpec, rng: np.random.Generator, origin
     return loss if any_glass else None
 
 
+def _through_windows(tgt: Target, origins: np.ndarray, d_w: np.ndarray, prim: np.ndarray,
+                     tfar: np.ndarray, loss: np.ndarray | None
+                     ) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """Rays that ended on a façade's window go on into the room behind it (module docstring,
+    step 2; kernels.window_returns). Updates `tfar` in place; returns the glass loss (None: no
+    glass met) and each ray's reflectivity from behind a window (-1: none; None: no window met)."""
+    wl = tgt.windows
+    out = np.ones(len(prim), np.float32) if loss is None else loss
+    refl = np.full(len(prim), -1.0, np.float32)
+    hits = window_returns(prim, tfar, d_w, origins, wl.tri_wall, wl.walls, wl.panes, wl.n_panes, out,
+                          refl, WINDOW_TRANSMITTANCE, GLASS_R0, ROOM_DEPTH_M, CURTAIN_GAP_M,
+                          ROOM_REFLECTIVITY, CURTAIN_REFLECTIVITY)
+    return (out, refl) if hits else (loss, None)
+
+
 def _detect(spec: LidarSpec, rng: np.random.Generator, beta: float, tgt: Target, rays: RayTable,
             origins: np.ndarray, d_w: np.ndarray, prim: np.ndarray, tfar: np.ndarray, ng: np.ndarray,
-            loss: np.ndarray | None):
+            loss: np.ndarray | None, refl: np.ndarray | None):
     """Steps 3-5 of the module docstring (kernels.detect_rays): the kept rays, their true range,
     rho_eff, detection threshold, actor id and the uniform of the reading's scatter. Draws one
     uniform per ray (drop-out, then the reading): part of the seed's meaning."""
@@ -150,7 +169,7 @@ def _detect(spec: LidarSpec, rng: np.random.Generator, beta: float, tgt: Target,
     motion = spec.motion and tgt.first_moving < tgt.n_triangles
     lasers = _laser_tables(spec)
     return detect_rays(prim, tfar, ng, d_w, origins, tgt.tri_inv_ng, e32 if loss is None else loss,
-                       tgt.tri_refl, tgt.tri_expo, tgt.tri_actor, need, ext, u, spec.beams,
+                       e32 if refl is None else refl, tgt.tri_refl, tgt.tri_expo, tgt.tri_actor, need, ext, u, spec.beams,
                        rays.columns, lasers["dropout"], lasers["zero"], spec.detection,
                        spec.min_range, spec.max_range, motion, tgt.first_moving, tgt.tri_slot,
                        rays.time, tgt.placed_time, tgt.placed_origin, tgt.velocity, tgt.yaw_rate,
@@ -227,14 +246,17 @@ def scan(world: World, spec: LidarSpec, seed: int | np.random.Generator,
     d_w = _world_dirs(spec, tuple(world.lidar_pose[:3, :3].ravel().tolist()))
     origins = _origins(world, spec, rays, n)
     prim, tfar, ng = _query(tgt, spec, origins, d_w, n)
-    loss = None
+    loss = refl = None
     if spec.transmission and tgt.n_triangles:
         cand = pass_candidates(prim, tgt.tri_passes)
         if len(cand):
             loss = _pass_through(tgt, spec, rng, origins, d_w, prim, tfar, ng, cand)
+        if tgt.windows.n_walls:
+            loss, refl = _through_windows(tgt, origins, d_w, prim, tfar, loss)
 
     beta = total_extinction(world.weather) if spec.weather else 0.0
-    idx, r, rho, need, aid, v = _detect(spec, rng, beta, tgt, rays, origins, d_w, prim, tfar, ng, loss)
+    idx, r, rho, need, aid, v = _detect(spec, rng, beta, tgt, rays, origins, d_w, prim, tfar, ng, loss,
+                                        refl)
     if spec.weather and (world.weather.fog_extinction > 0 or world.weather.rain_rate > 0):
         kept = np.full(n, -1.0, np.float32)
         kept[idx] = v

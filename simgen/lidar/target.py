@@ -28,6 +28,7 @@ from ..world import World
 from .kernels import inverse_doubled_areas
 from .rays import sweep_time_of_azimuth
 from .spec import LidarSpec
+from .windows import Windows, windows_of
 
 
 @dataclass
@@ -47,6 +48,7 @@ class Target:
     tri_glass: np.ndarray  # (F,) int32 index into glass_planes, -1 = not glass
     glass_planes: np.ndarray  # (G, K, 4) float32 outward unit normal and offset per face, zero-padded
     tri_inv_ng: np.ndarray  # (F,) float32 1 / |edge cross product|: normalises Embree's Ng
+    windows: Windows  # the façades' windows (static triangles come first)
     actor_ids: np.ndarray  # (A,) int32
     placed_time: np.ndarray  # (A,) float64 time each actor's mesh is placed at
     placed_origin: np.ndarray  # (A, 3) actor origin (world) at placed_time
@@ -196,6 +198,7 @@ def build_target(world: World, spec: LidarSpec) -> Target:
         tri_glass=tri_glass,
         glass_planes=glass_planes,
         tri_inv_ng=inv_ng,
+        windows=windows_of(world, sum(counts)),
         actor_ids=np.array([a.id for a in world.actors], dtype=np.int32),
         placed_time=t_place,
         placed_origin=placed_origin,
