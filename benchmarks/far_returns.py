@@ -4,9 +4,9 @@ returns beyond 40 m").
 
     .venv/bin/python benchmarks/far_returns.py [--spec scenes/urban.yaml] [--frames 12] [--range 40]
 
-Each return's ray is cast again from the sensor's origin of the sweep's start through the point
-(the ego's motion during the sweep is ignored: a few centimetres at these speeds) into the same
-Embree scene the scan used, and the triangle it hits names the material.
+Each return's ray is cast again from the sensor's origin at the return's firing time through the
+point into the same Embree scene the scan used, and the triangle it hits names the material
+(the lasers' few-centimetre offsets from that origin are ignored).
 """
 
 from __future__ import annotations
@@ -22,15 +22,23 @@ from simgen.sample import sample_world
 from simgen.spec import load_spec
 
 
-def materials_hit(world, spec: lidar.LidarSpec, points: np.ndarray) -> np.ndarray:
-    """Material name of the surface behind each point (sensor frame), 'none' where no triangle."""
+def materials_hit(world, spec: lidar.LidarSpec, scan: lidar.LidarScan) -> np.ndarray:
+    """Material name of the surface behind each return, 'none' where no triangle; 'window' where
+    the ray meets a façade that can hold windows and the return lies more than 10 cm beyond it (a
+    curtain or a room behind the glass: simgen.lidar.windows)."""
     tgt = build_target(world, spec)
-    rot, origin = world.lidar_pose[:3, :3], world.lidar_pose[:3, 3]
-    d = points @ rot.T
-    d /= np.linalg.norm(d, axis=1, keepdims=True)
-    prim = tgt.scene.run(np.repeat(origin[None].astype(np.float32), len(d), 0), d.astype(np.float32))
-    names = np.array([m.name for m in tgt.materials] + ["none"])
-    return names[np.where(prim >= 0, tgt.tri_mat[np.maximum(prim, 0)], len(tgt.materials))]
+    poses = world.lidar_pose_at(scan.time.astype(np.float64))  # the sensor at each firing
+    origin = poses[:, :3, 3]
+    d = np.einsum("nij,nj->ni", poses[:, :3, :3], scan.points[:, :3].astype(np.float64))
+    r = np.linalg.norm(d, axis=1)
+    d /= r[:, None]
+    res = tgt.scene.run(origin.astype(np.float32), d.astype(np.float32), output=1)
+    prim = res["primID"]
+    names = np.array([m.name for m in tgt.materials] + ["none", "window"])
+    index = np.where(prim >= 0, tgt.tri_mat[np.maximum(prim, 0)], len(tgt.materials))
+    behind = (prim >= 0) & (tgt.windows.tri_wall[np.maximum(prim, 0)] >= 0) & (r > res["tfar"] + 0.1)
+    index[behind] = len(tgt.materials) + 1
+    return names[index]
 
 
 def main() -> None:
@@ -45,8 +53,9 @@ def main() -> None:
     far, every, n = collections.Counter(), collections.Counter(), 0
     for i in range(args.frames):
         world = sample_world(spec, args.seed, i)
-        pts = lidar.scan(world, sensor, 0).points[:, :3].astype(np.float64)
-        names = materials_hit(world, sensor, pts)
+        swept = lidar.scan(world, sensor, 0)
+        pts = swept.points[:, :3].astype(np.float64)
+        names = materials_hit(world, sensor, swept)
         beyond = np.linalg.norm(pts, axis=1) > args.far
         n += len(pts)
         every.update(names.tolist())

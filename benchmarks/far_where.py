@@ -1,0 +1,68 @@
+"""Where the far returns lie, in two KITTI roots side by side: the heights and bearings of the
+returns beyond a range (a diagnosis of the fidelity report's "share of returns beyond 40 m":
+is the excess one kind of surface, or the same view open more often?).
+
+    .venv/bin/python benchmarks/far_where.py --sim data/fidelity/urban200_win \\
+        --real ../shared/kitti_real_dev [--range 40]
+
+Height: z in the LiDAR frame plus KITTI's mounting height (1.73 m), i.e. above a flat road under
+the sensor. Bearing: ahead, beside or behind the car (within 30 deg of the axis ahead or behind).
+Per frame, as a share of all its returns; the median over frames.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from kitti.velodyne import read_velodyne
+from simgen.rigs import KITTI_LIDAR_HEIGHT
+
+BANDS = ((-np.inf, 0.5), (0.5, 3.0), (3.0, np.inf))  # m above the road (the top beam, +2 deg, is
+# 4.5 m up at 80 m)
+
+
+def far_returns(root: Path, far: float) -> tuple[np.ndarray, np.ndarray]:
+    """Every frame's heights of its returns beyond `far` (pooled) and (frames, 4) shares of its
+    returns beyond `far` ahead, beside, behind, and in all."""
+    heights, shares = [], []
+    files = sorted((root / "training" / "velodyne").glob("*.bin"))
+    for f in tqdm(files, desc=root.name, leave=False):
+        p = read_velodyne(f)
+        beyond = np.hypot(p[:, 0], p[:, 1]) > far
+        bearing = np.abs(np.degrees(np.arctan2(p[:, 1], p[:, 0])))
+        heights.append(p[beyond, 2] + KITTI_LIDAR_HEIGHT)
+        sectors = [bearing < 30, (bearing >= 30) & (bearing < 150), bearing >= 150]
+        shares.append([(beyond & s).sum() / len(p) for s in sectors] + [beyond.mean()])
+    return np.concatenate(heights), np.array(shares)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--sim", type=Path, required=True)
+    ap.add_argument("--real", type=Path, required=True)
+    ap.add_argument("--range", type=float, default=40.0, dest="far")
+    args = ap.parse_args()
+    print(f"| returns beyond {args.far:g} m | real | sim |\n|---|---|---|")
+    rows: dict[str, list[str]] = {}
+    for root in (args.real, args.sim):
+        h, s = far_returns(root, args.far)
+        med = np.median(s, axis=0)
+        q = np.percentile(h, [10, 50, 90])
+        rows.setdefault("frames", []).append(str(len(s)))
+        rows.setdefault("share of a frame's returns (median)", []).append(f"{100 * med[3]:.2f} %")
+        rows.setdefault("ahead / beside / behind (median shares)", []).append(
+            " / ".join(f"{100 * m:.2f} %" for m in med[:3]))
+        rows.setdefault("height above the road, quantiles 10 / 50 / 90 (m)", []).append(
+            " / ".join(f"{v:.2f}" for v in q))
+        rows.setdefault("below 0.5 / 0.5-3 / above 3 m (pooled)", []).append(
+            " / ".join(f"{100 * np.mean((h >= lo) & (h < hi)):.0f} %" for lo, hi in BANDS))
+    for name, (real, sim) in rows.items():
+        print(f"| {name} | {real} | {sim} |")
+
+
+if __name__ == "__main__":
+    main()
