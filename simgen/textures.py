@@ -1,5 +1,6 @@
 """Procedural surface detail for the camera: asphalt, paving, façades, grass, foliage, bark, wood,
-and on vehicles glass, number plates and paint.
+and on vehicles glass, number plates and paint. The façade tiles' windows are also materials the
+LiDAR meets (`windows`, simgen.lidar.windows).
 
 Each texture is a tile of multipliers on a material's flat colour (mean about 1, so a surface
 keeps the albedo its material gives it, and the LiDAR, which reads the material, agrees with the

@@ -1,6 +1,7 @@
 """Rotating multi-beam LiDAR: real sensor presets, exact occlusion by one batched Embree
-query (and small ones for the rays that pass glass and leaves), per-ray time with ego and
-actor motion, noise, the reflectance channel as KITTI's HDL-64E reports it, and weather.
+query (and small ones for the rays that pass glass and leaves; façade windows where the camera's
+textures show them), per-ray time with ego and actor motion, noise, the reflectance channel as
+KITTI's HDL-64E reports it, and weather.
 
 Frames: LiDAR x forward, y left, z up (KITTI velodyne). Rings: 0 = top beam. Times: seconds
 from the camera trigger, when the head faces forward; a 10 Hz sweep spans [-0.05, 0.05] s.
