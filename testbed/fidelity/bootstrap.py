@@ -20,7 +20,7 @@ import numpy as np
 from kitti.eval.bootstrap import DRAWS, LEVEL, SEED, central_interval
 
 from .catalog import STATS, Stat
-from .stats import DatasetStats
+from .stats import DatasetStats, Draws
 
 # A statistic that cannot be evaluated (no object in its bin) in more draws than this share gets
 # no interval.
@@ -62,13 +62,15 @@ def intervals(sim: DatasetStats, real: DatasetStats, draws: int = DRAWS, seed: i
     if draws <= 0 or not sim.frames or not real.frames:
         return {s.key: None for s in stats}
     rng = np.random.default_rng(seed)
+    picks = [(rng.integers(len(sim.frames), size=len(sim.frames)),
+              rng.integers(len(real.frames), size=len(real.frames))) for _ in range(draws)]
+    a, b = Draws.of(sim, [p for p, _ in picks]), Draws.of(real, [q for _, q in picks])
     rel = np.empty((draws, len(stats)))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # medians of empty bins: nan
-        for d in range(draws):
-            a = sim.resample(rng.integers(len(sim.frames), size=len(sim.frames)))
-            b = real.resample(rng.integers(len(real.frames), size=len(real.frames)))
-            rel[d] = [relative_difference(s.value(a), s.value(b)) for s in stats]
+        for j, s in enumerate(stats):
+            rel[:, j] = [relative_difference(x, y)
+                         for x, y in zip(s.value.draws(a).tolist(), s.value.draws(b).tolist())]
     out: dict[str, Interval | None] = {}
     for j, s in enumerate(stats):
         col = rel[:, j][~np.isnan(rel[:, j])]

@@ -6,13 +6,22 @@ their median over objects."""
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
+from typing import Callable, Protocol
 
 import numpy as np
 
 from .images import CANNY, NEAR_CAR_PX
 from .lidar import GROUND_M, NEAR_M
-from .stats import DatasetStats
+from .stats import DatasetStats, Draws
+
+
+class Summary(Protocol):
+    """A statistic's one number: of a dataset (called on it) and of each bootstrap draw of its
+    frames (`draws`: the same numbers as calling it on each draw's `DatasetStats.resample`)."""
+
+    def __call__(self, d: DatasetStats) -> float: ...
+
+    def draws(self, dr: Draws) -> np.ndarray: ...
 
 
 @dataclass(frozen=True)
@@ -20,7 +29,7 @@ class Stat:
     key: str
     label: str
     unit: str
-    value: Callable[[DatasetStats], float]
+    value: Summary
 
 
 def _median(v: np.ndarray) -> float:
@@ -33,39 +42,88 @@ def _share(v: np.ndarray, test: Callable[[np.ndarray], np.ndarray]) -> float:
     return float(np.mean(test(v))) if len(v) else float("nan")
 
 
-def med(key: str) -> Callable[[DatasetStats], float]:
-    return lambda d: _median(d.get(key))
+@dataclass(frozen=True)
+class Median:
+    """Median over the finite values of `key` (those `keep` selects)."""
+
+    key: str
+    keep: Callable[[DatasetStats], np.ndarray] | None = None
+
+    def _kept(self, d: DatasetStats, a: np.ndarray) -> np.ndarray:
+        return a if self.keep is None else a[self.keep(d)]
+
+    def __call__(self, d: DatasetStats) -> float:
+        return _median(self._kept(d, d.get(self.key)))
+
+    def draws(self, dr: Draws) -> np.ndarray:
+        d = dr.stats
+        v, f = self._kept(d, d.get(self.key)), self._kept(d, d.frames_of(self.key))
+        finite = np.isfinite(v)
+        return dr.medians(v[finite], f[finite])
+
+
+@dataclass(frozen=True)
+class Share:
+    """Share of the values of `key` that pass `test`."""
+
+    key: str
+    test: Callable[[np.ndarray], np.ndarray]
+
+    def __call__(self, d: DatasetStats) -> float:
+        return _share(d.get(self.key), self.test)
+
+    def draws(self, dr: Draws) -> np.ndarray:
+        return dr.shares(self.test(dr.stats.get(self.key)), dr.stats.frames_of(self.key))
+
+
+def med(key: str) -> Median:
+    return Median(key)
 
 
 def column_nanmedians(rows: np.ndarray) -> np.ndarray:
     """np.nanmedian(rows, axis=0), the same numbers, by one sort (NaN sorts last): numpy's own
-    runs a Python loop per column from 600 rows on, which the bootstrap's draws would repeat."""
+    runs a Python loop per column from 600 rows on."""
     s = np.sort(rows, axis=0)
     n = np.count_nonzero(~np.isnan(rows), axis=0)
     cols = np.arange(rows.shape[1])
     return (s[np.maximum(n - 1, 0) // 2, cols] + s[n // 2, cols]) / 2  # NaN where n == 0
 
 
-def ring_median(key: str, pick: Callable[[np.ndarray], float]) -> Callable[[DatasetStats], float]:
-    """Median over frames per ring, then `pick` over the 64 rings (a ring empty in every frame
-    stays NaN)."""
-    def value(d: DatasetStats) -> float:
-        rows = d.rows.get(key)
+@dataclass(frozen=True)
+class RingMedian:
+    """Median over frames per ring of the rows of `key`, then `pick` over the 64 rings (a ring
+    empty in every frame stays NaN)."""
+
+    key: str
+    pick: Callable[[np.ndarray], float]
+
+    def __call__(self, d: DatasetStats) -> float:
+        rows = d.rows.get(self.key)
         if rows is None or not len(rows):
             return float("nan")
-        return float(pick(column_nanmedians(rows)))
-    return value
+        return float(self.pick(column_nanmedians(rows)))
+
+    def draws(self, dr: Draws) -> np.ndarray:
+        if self.key not in dr.stats.rows:
+            return np.full(len(dr.counts), np.nan)
+        drawn = dr.drawn(dr.stats.row_frames[self.key])  # rows in each draw
+        return np.array([self.pick(m) if n else np.nan
+                         for m, n in zip(dr.column_medians(self.key), drawn)], np.float64)
 
 
-def car_points(lo: float, hi: float, visible: bool = False) -> Callable[[DatasetStats], float]:
+def ring_median(key: str, pick: Callable[[np.ndarray], float]) -> RingMedian:
+    return RingMedian(key, pick)
+
+
+def car_points(lo: float, hi: float, visible: bool = False) -> Median:
     """Median returns inside the Cars at lo-hi m; `visible`: only those labelled occlusion 0."""
-    def value(d: DatasetStats) -> float:
+    def keep(d: DatasetStats) -> np.ndarray:
         dist = d.get("lidar.car_distance_m")
         keep = (dist >= lo) & (dist < hi)
         if visible:
             keep &= d.get("lidar.car_occluded") == 0
-        return _median(d.get("lidar.car_points")[keep])
-    return value
+        return keep
+    return Median("lidar.car_points", keep)
 
 
 STATS: tuple[Stat, ...] = (
@@ -109,9 +167,9 @@ STATS: tuple[Stat, ...] = (
     Stat("labels.cars_per_frame", "Cars per frame", "", med("labels.cars")),
     Stat("labels.distance_m", "object distance (ground x-z)", "m", med("labels.distance_m")),
     Stat("labels.fully_visible_share", "share of objects with occlusion 0", "",
-         lambda d: _share(d.get("labels.occlusion"), lambda v: v == 0)),
+         Share("labels.occlusion", lambda v: v == 0)),
     Stat("labels.truncated_share", "share of objects with truncation > 0", "",
-         lambda d: _share(d.get("labels.truncation"), lambda v: v > 0)),
+         Share("labels.truncation", lambda v: v > 0)),
     Stat("labels.box_height_px", "2D box height", "px", med("labels.box_height_px")),
     Stat("labels.proj_gap_px", "2D box vs projected 3D box, max side gap", "px",
          med("labels.proj_gap_px")),
@@ -123,6 +181,6 @@ STATS: tuple[Stat, ...] = (
     Stat("labels.car_bottom_darkening", "its grey mean less that of its lowest eighth", "grey levels",
          med("labels.car_bottom_darkening")),
     Stat("labels.proj_within_1px_share", "share of objects with that gap within 1 px", "",
-         lambda d: _share(d.get("labels.proj_gap_px"), lambda v: v <= 1.0)),
+         Share("labels.proj_gap_px", lambda v: v <= 1.0)),
 )
 STAT_KEYS = frozenset(s.key for s in STATS)

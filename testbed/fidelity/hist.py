@@ -25,7 +25,8 @@ class Hist:
     def edges(self) -> np.ndarray:
         return np.linspace(self.lo, self.hi, self.bins + 1)
 
-    def add(self, values: np.ndarray) -> None:
+    def add(self, values: np.ndarray, weights: np.ndarray | None = None) -> None:
+        """Count `values`, each `weights` times where given (how often that value occurs)."""
         v = np.asarray(values).ravel()
         width = (self.hi - self.lo) / self.bins
         if v.dtype == np.uint8 and self.lo == 0 and self.hi >= 256 and width == int(width):
@@ -34,7 +35,8 @@ class Hist:
             x = (v - self.lo) * (1 / width)
             np.clip(x, 0, self.bins - 1, out=x)
             idx = x.astype(np.intp)
-        self.counts += np.bincount(idx, minlength=self.bins)[: self.bins]
+        counts = np.bincount(idx, weights, minlength=self.bins)[: self.bins]
+        self.counts += counts if weights is None else counts.astype(np.int64)
 
     def merge(self, other: Hist) -> None:
         self.counts += other.counts

@@ -21,6 +21,11 @@ FLAT = 1            # |dI/dx| below this (grey levels) is a flat pixel
 # A Car whose look is measured: its 2D box at least this tall (KITTI's "easy" height, about 28 m
 # and nearer for a 1.5 m car), untruncated and fully visible, so the box holds the car alone.
 NEAR_CAR_PX = 40
+LEVELS = np.arange(256, dtype=np.uint8)  # of an 8-bit channel
+# The float32 gradient magnitude of each (|dI/dx|, |dI/dy|) pair of 8-bit pixels, at 256·dx + dy:
+# computed once, so the gradient histogram counts pairs instead of taking a square root a pixel.
+GRADIENT_MAG = np.sqrt(np.square(np.arange(256)[:, None], dtype=np.float32)
+                       + np.square(np.arange(256), dtype=np.float32)).ravel()
 
 
 def read_image(path: Path) -> tuple[np.ndarray, int]:
@@ -32,24 +37,35 @@ def read_image(path: Path) -> tuple[np.ndarray, int]:
     return img, len(data)
 
 
+def levels(channel: np.ndarray, n: int = 256) -> np.ndarray:
+    """How many pixels of an 8- or 16-bit channel hold each of its `n` levels: cv2 counts them
+    three times faster than bincount, in float32, exact below 2**24 pixels."""
+    if channel.size >= 1 << 24:
+        return np.bincount(channel.ravel(), minlength=n)
+    return cv2.calcHist([channel], [0], None, [n], [0, n]).ravel().astype(np.int64)
+
+
 def image_stats(acc: Acc, img: np.ndarray, nbytes: int) -> np.ndarray:
-    """The whole image's statistics; returns its grey image (cv2's BGR2GRAY)."""
+    """The whole image's statistics; returns its grey image (cv2's BGR2GRAY). Means and
+    histograms of a channel come from its level counts: a sum of 8-bit levels is exact in
+    float64, so the mean is the one numpy gives."""
     grey = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
     sat = cv2.cvtColor(img, cv2.COLOR_BGR2HSV)[..., 1]
+    grey_n, sat_n = levels(grey), levels(sat)
     g = grey.astype(np.int16)
     dx = np.abs(np.diff(g, axis=1))
     dy = np.abs(np.diff(g, axis=0))
-    mag = np.sqrt(np.square(dx[:-1], dtype=np.float32) + np.square(dy[:, :-1], dtype=np.float32))
+    pairs = dx[:-1].astype(np.uint16) << 8 | dy[:, :-1].astype(np.uint16)  # GRADIENT_MAG's index
     acc.put("images.png_bytes", nbytes)
-    acc.put("images.grey_mean", grey.mean())
+    acc.put("images.grey_mean", LEVELS @ grey_n / grey.size)
     acc.put("images.grey_sd", grey.std())
-    acc.put("images.saturation_mean", sat.mean())
+    acc.put("images.saturation_mean", LEVELS @ sat_n / sat.size)
     acc.put("images.mean_abs_dx", dx.mean())
     acc.put("images.flat_share", np.count_nonzero(dx < FLAT) / dx.size)
     acc.put("images.edge_density", np.count_nonzero(cv2.Canny(grey, *CANNY)) / grey.size)
-    acc.hist("images.grey", grey)
-    acc.hist("images.saturation", sat)
-    acc.hist("images.gradient", mag)
+    acc.hist("images.grey", LEVELS, grey_n)
+    acc.hist("images.saturation", LEVELS, sat_n)
+    acc.hist("images.gradient", GRADIENT_MAG, levels(pairs, len(GRADIENT_MAG)))
     return grey
 
 

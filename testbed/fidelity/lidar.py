@@ -3,12 +3,13 @@ and the points on each Car), so a real scan and a generated one are measured the
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 from kitti.boxes import points_in_boxes
 from kitti.calib import Calibration
 from kitti.labels import Object3D
-from kitti.rings import elevation, recover_rings
+from kitti.rings import recover_rings
 from lifter.ground import fit_ground_plane, height_above
 
 from .stats import Acc
@@ -37,12 +38,13 @@ def lidar_stats(acc: Acc, scan: np.ndarray, calib: Calibration,
     acc.put("lidar.reflectance_mean", refl.mean(dtype=np.float64))
     acc.put("lidar.reflectance_zero", np.count_nonzero(refl == 0) / len(refl))
     acc.hist("lidar.reflectance", refl)
-    _rings(acc, pts)
+    bev = np.hypot(pts[:, 0], pts[:, 1])  # bird's-eye range
+    _rings(acc, pts, bev)
     rect = calib.lidar_to_rect(pts)
     ground = np.abs(height_above(rect, fit_ground_plane(rect))) < GROUND_M
     acc.put("lidar.ground_share", np.count_nonzero(ground) / len(pts))
     # where the ground share comes from: what stands beside the sensor on each side (LiDAR y left)
-    near = np.hypot(pts[:, 0], pts[:, 1]) < NEAR_M
+    near = bev < NEAR_M
     for side, m in (("left", near & (pts[:, 1] > 0)), ("right", near & (pts[:, 1] < 0))):
         if m.any():
             acc.put(f"lidar.near_ground_{side}", np.count_nonzero(ground[m]) / np.count_nonzero(m))
@@ -50,10 +52,11 @@ def lidar_stats(acc: Acc, scan: np.ndarray, calib: Calibration,
         _car_points(acc, rect, [o for o in labels if o.type == "Car"])
 
 
-def _rings(acc: Acc, pts: np.ndarray) -> None:
-    """Returns and median elevation (degrees) per recovered ring, 0 = top."""
+def _rings(acc: Acc, pts: np.ndarray, bev: np.ndarray) -> None:
+    """Returns and median elevation (degrees) per recovered ring, 0 = top. The elevation is
+    kitti.rings.elevation's, from the bird's-eye range the near field also uses."""
     ring, method = recover_rings(pts, RINGS)
-    el = np.degrees(elevation(pts))
+    el = np.degrees(np.arctan2(pts[:, 2], bev))
     counts = np.bincount(ring, minlength=RINGS)[:RINGS]
     per_ring = np.split(el[np.argsort(ring, kind="stable")], np.cumsum(counts)[:-1])
     acc.row("lidar.ring_returns", counts)
@@ -70,8 +73,21 @@ def _car_points(acc: Acc, rect: np.ndarray, cars: list[Object3D]) -> None:
     for o in cars:
         b = o.box7
         reach = np.hypot(b[4], b[5]) / 2  # a cheap square around the box first
-        near = np.flatnonzero((np.abs(x - b[0]) <= reach) & (np.abs(z - b[2]) <= reach))
+        near = _in_square(x, z, b[0], b[2], reach)
         counts.append(np.count_nonzero(points_in_boxes(rect[near], b)[0]))
     acc.put("lidar.car_points", counts)
     acc.put("lidar.car_distance_m", [np.hypot(o.location[0], o.location[2]) for o in cars])
     acc.put("lidar.car_occluded", [o.occluded for o in cars])
+
+
+@numba.njit(cache=True, nogil=True)
+def _in_square(x: np.ndarray, z: np.ndarray, cx: float, cz: float, reach: float) -> np.ndarray:
+    """Indices of the points with |x - cx| <= reach and |z - cz| <= reach (the same float64
+    comparisons as numpy's), in one pass instead of six arrays the size of the scan per Car."""
+    out = np.empty(len(x), np.int64)
+    k = 0
+    for i in range(len(x)):
+        if abs(x[i] - cx) <= reach and abs(z[i] - cz) <= reach:
+            out[k] = i
+            k += 1
+    return out[:k]

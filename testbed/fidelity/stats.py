@@ -1,8 +1,8 @@
 """What one pass over a dataset keeps: per-frame (and per-object) scalars, a few per-frame
 vectors (per ring, per class) and fixed-bin histograms. Workers fill an `Acc` per chunk of frames;
 the chunks merge, in job order, into one `DatasetStats`. Every value and vector keeps the index of
-the frame it came from, so a bootstrap can resample frames (`DatasetStats.resample`) with each
-frame's objects travelling together."""
+the frame it came from, so a bootstrap can resample frames (`DatasetStats.resample`; `Draws`, every
+draw at once) with each frame's objects travelling together."""
 
 from __future__ import annotations
 
@@ -56,10 +56,10 @@ class Acc:
         self.rows.setdefault(key, []).append(np.asarray(vector, np.float64))
         self.row_frames.setdefault(key, []).append(self._frame())
 
-    def hist(self, key: str, values) -> None:
+    def hist(self, key: str, values, weights=None) -> None:
         if key not in self.hists:
             self.hists[key] = Hist(*HIST_BINS[key])
-        self.hists[key].add(values)
+        self.hists[key].add(values, weights)
 
 
 @dataclass
@@ -81,6 +81,10 @@ class DatasetStats:
         """The values of `key`; empty when the group is absent or nothing was seen."""
         return self.values.get(key, np.zeros(0))
 
+    def frames_of(self, key: str) -> np.ndarray:
+        """The frame index of each value of `key` (aligned with `get`)."""
+        return self.value_frames.get(key, np.zeros(0, np.int64))
+
     def resample(self, picks: np.ndarray) -> DatasetStats:
         """The values and rows of the frames `picks` (indices into `frames`, repeats allowed), in
         that order, each frame with all its values: one bootstrap draw. Histograms are not
@@ -90,6 +94,71 @@ class DatasetStats:
         rows, row_frames = _pick(self.rows, self.row_frames, picks, len(self.frames))
         return DatasetStats(self.root, self.split, [self.frames[i] for i in picks], [], self.groups,
                             values, rows, self.hists, value_frames, row_frames)
+
+
+# Entries (draws x columns x values) that Draws.medians handles at once: bounds its memory.
+BLOCK = 1 << 20
+
+
+@dataclass
+class Draws:
+    """Every bootstrap draw of one dataset's frames at once, as counts: `counts[d, f]` is how often
+    draw d picks frame f. A median per draw then comes from the dataset's own values, sorted once
+    and each weighted by its frame's count, instead of a `resample` and a sort per draw. It is the
+    mean of the same one or two order statistics, so the same number; only a -0.0 median may keep
+    its sign where np.median's gives 0.0, which no relative difference sees."""
+
+    stats: DatasetStats
+    counts: np.ndarray  # (draws, frames), int32
+    _columns: dict[str, np.ndarray] = field(default_factory=dict)
+
+    @classmethod
+    def of(cls, stats: DatasetStats, picks: list[np.ndarray]) -> Draws:
+        """The draws `picks` (each: indices into `stats.frames`, as for `resample`)."""
+        n = len(stats.frames)
+        return cls(stats, np.array([np.bincount(p, minlength=n) for p in picks], np.int32))
+
+    def drawn(self, frames: np.ndarray) -> np.ndarray:
+        """Per draw, how many of the entries belonging to `frames` it holds."""
+        return self.counts[:, frames].sum(axis=1)
+
+    def medians(self, values: np.ndarray, frames: np.ndarray) -> np.ndarray:
+        """Per draw (and per column of 2-D `values`, entries x columns), the median of the non-NaN
+        entries, each counted as often as its frame (`frames`, one per entry) is drawn; NaN where
+        a draw holds none."""
+        cols = (values[:, None] if values.ndim == 1 else values).T  # columns x entries
+        out = np.full((len(self.counts), len(cols)), np.nan)
+        if not cols.size:
+            return out.reshape((len(self.counts),) + values.shape[1:])
+        order = np.argsort(cols, axis=1)  # NaN last, where no median reaches
+        v, f = np.take_along_axis(cols, order, axis=1), frames[order]
+        last = np.count_nonzero(~np.isnan(v), axis=1) - 1  # per column: its last non-NaN entry
+        c = np.arange(len(cols))
+        step = max(1, BLOCK // cols.size)
+        for s in range(0, len(self.counts), step):
+            cum = np.cumsum(np.take(self.counts[s:s + step], f, axis=1), axis=2, dtype=np.int32)
+            n = np.where(last >= 0, cum[:, c, np.maximum(last, 0)], 0)  # non-NaN entries drawn
+            # the order statistics (n - 1) // 2 and n // 2 of a draw: the first entries whose
+            # cumulative count passes them (argmax stops at the first)
+            lo = np.argmax(cum > ((n - 1) // 2)[..., None], axis=2)
+            hi = np.argmax(cum > (n // 2)[..., None], axis=2)
+            out[s:s + step] = np.where(n > 0, (v[c, lo] + v[c, hi]) / 2, np.nan)
+        return out.reshape((len(self.counts),) + values.shape[1:])
+
+    def column_medians(self, key: str) -> np.ndarray:
+        """`medians` of each column of the rows of `key` (draws x columns), kept: two statistics
+        read each key's."""
+        if key not in self._columns:
+            self._columns[key] = self.medians(self.stats.rows[key], self.stats.row_frames[key])
+        return self._columns[key]
+
+    def shares(self, passed: np.ndarray, frames: np.ndarray) -> np.ndarray:
+        """Per draw, the share of entries that `passed` (one bool per entry); NaN where a draw
+        holds none."""
+        n = len(self.stats.frames)
+        total = self.counts @ np.bincount(frames, minlength=n)
+        hits = self.counts @ np.bincount(frames[passed], minlength=n)
+        return np.where(total > 0, hits / np.maximum(total, 1), np.nan)
 
 
 def _pick(arrays: dict[str, np.ndarray], frame_of: dict[str, np.ndarray], picks: np.ndarray,

@@ -8,8 +8,8 @@ import pytest
 
 from testbed.fidelity import compare, compute_stats
 from testbed.fidelity.bootstrap import Interval, intervals
-from testbed.fidelity.catalog import Stat, med
-from testbed.fidelity.stats import Acc, DatasetStats, merge
+from testbed.fidelity.catalog import STATS, Share, Stat, car_points, med, ring_median
+from testbed.fidelity.stats import Acc, DatasetStats, Draws, merge
 
 
 def _chunks() -> list[Acc]:
@@ -46,6 +46,30 @@ def _one(values: list[float]) -> DatasetStats:
     return DatasetStats("x", None, [str(i) for i in range(n)], [], {"images": True},
                         {"images.grey_mean": np.array(values)}, {}, {},
                         {"images.grey_mean": np.arange(n)}, {})
+
+
+def test_all_draws_at_once_give_each_draws_own_numbers():
+    """Draws (every draw from frame counts, one sort) against resampling each draw and computing
+    the statistic on it: the same numbers, with ties, NaN, empty frames and an empty draw."""
+    rng = np.random.default_rng(5)
+    acc = Acc()
+    for f in range(7):
+        acc.frames.append(str(f))
+        n = int(rng.integers(0, 4))  # frames 0-6 hold 0-3 values, some tied, some NaN
+        acc.put("x", np.round(rng.normal(size=n), 1) if f != 3 else [np.nan, 1.0])
+        acc.row("r", np.where(rng.uniform(size=3) < 0.2, np.nan, rng.integers(0, 3, 3).astype(float)))
+        acc.put("lidar.car_points", rng.integers(0, 50, 2).astype(float))
+        acc.put("lidar.car_distance_m", rng.uniform(0, 80, 2))
+        acc.put("lidar.car_occluded", rng.integers(0, 3, 2).astype(float))
+    d = merge("root", None, {}, [acc])
+    picks = [rng.integers(7, size=7) for _ in range(40)] + [np.array([0, 0, 0, 0, 0, 0, 0])]
+    draws = Draws.of(d, picks)
+    summaries = [med("x"), Share("x", lambda v: v > 0), ring_median("r", np.nanmax),
+                 ring_median("r", lambda m: m[0]), car_points(0, 40), car_points(20, 80, visible=True)]
+    for s in summaries:
+        want = np.array([s(d.resample(p)) for p in picks])
+        np.testing.assert_array_equal(s.draws(draws), want)
+    assert {type(s.value) for s in STATS} <= {type(x) for x in summaries}
 
 
 def test_an_interval_by_hand():
