@@ -51,20 +51,54 @@ def elevation(points: np.ndarray) -> np.ndarray:
 SEAMS = ("back", "front")  # where a revolution may start: azimuth pi (simulator), 0 (KITTI)
 
 
+def _median_sign(x: np.ndarray) -> float:
+    """np.sign(np.median(x)) for a non-empty x without NaN, by counting: when more than half
+    of x is positive (negative), so are the middle values and their mean, and only a near tie
+    needs the median itself. Partitioning x for its median took as long as the rest of the run
+    search, and only the sign is used."""
+    if np.count_nonzero(x > 0) > len(x) / 2:
+        return 1.0
+    if np.count_nonzero(x < 0) > len(x) / 2:
+        return -1.0
+    return np.sign(np.median(x))
+
+
+def _median(x: np.ndarray) -> np.floating:
+    """np.median(x) of a non-empty 1-D float array, bit for bit: the mean of its middle order
+    statistics, (a + b) / 2 in x's dtype, from one np.partition. np.median's own overhead was
+    most of the cost of 64 ring medians. A zero (its sign depends on which of 0.0 and -0.0 the
+    partition puts in the middle, and scans hold both) and NaN are left to np.median."""
+    h = len(x) // 2
+    even = len(x) % 2 == 0
+    part = np.partition(x, [h - 1, h, -1] if even else [h, -1])
+    mid = (part[h - 1] + part[h]) / 2 if even else part[h]
+    if mid == 0 or np.isnan(part[-1]):
+        return np.median(x)
+    return mid
+
+
 def rings_from_azimuth_wraps(points: np.ndarray, jitter_deg: float = 0.25,
-                             seam: str = "back") -> np.ndarray:
+                             seam: str = "back", az: np.ndarray | None = None) -> np.ndarray:
     """Run index per point: a new run starts wherever the azimuth wraps at the seam (jumps by
-    more than pi either way) or steps back against the rotation by more than `jitter_deg`."""
+    more than pi either way) or steps back against the rotation by more than `jitter_deg`.
+
+    `az`, if given, is np.arctan2(y, x) of the points: recover_rings tries both seams on one
+    scan and computes it once."""
     if len(points) < 2:
         return np.zeros(len(points), np.int64)
-    az = np.arctan2(points[:, 1], points[:, 0])  # (-pi, pi]: wraps at the back
-    if seam == "front":
-        az = np.mod(az, 2 * np.pi)  # [0, 2 pi): wraps at the front
+    if az is None:
+        az = np.arctan2(points[:, 1], points[:, 0])  # (-pi, pi]: wraps at the back
+    if seam == "front":  # [0, 2 pi): wraps at the front
+        # np.mod(az, 2 pi) bit for bit, as az is in [-pi, pi], without np.mod's slow division
+        # (+ 0.0 turns -0.0 into 0.0, as np.mod does)
+        az = np.where(az < 0, az + 2 * np.pi, az + 0.0)
     d = np.diff(az)
     small = d[np.abs(d) < np.pi]
-    direction = np.sign(np.median(small)) if len(small) else 1.0
+    direction = _median_sign(small) if len(small) else 1.0  # the way the lasers rotate
     starts = (np.abs(d) > np.pi) | (direction * d < -np.deg2rad(jitter_deg))
-    return np.concatenate([[0], np.cumsum(starts)])
+    runs = np.zeros(len(az), np.int64)
+    np.cumsum(starts, out=runs[1:])  # in place: one scan-sized array fewer
+    return runs
 
 
 def rings_from_elevation(points: np.ndarray, beams: int, iterations: int = 30) -> np.ndarray:
@@ -94,29 +128,51 @@ def merge_short_runs(runs: np.ndarray, el: np.ndarray, share: float = 0.05) -> n
     A laser whose revolution does not start exactly at the back wraps inside its own ring: a
     few of its points land beyond the wrap, next to the neighbouring laser's, and form short
     runs; each rejoins the ring it shares an elevation with.
+
+    The work is done on stretches (maximal slices of equal `runs`; a run of
+    rings_from_azimuth_wraps is one slice), never on the points: a merge relabels stretches,
+    and a run's elevations are its stretches' slices of `el`, in scan order as el[runs == id].
+    Sorting every point (np.unique) and masking the whole scan per run cost more than the
+    merging, which a scan mostly does not need.
     """
-    runs = runs.copy()
+    cut = np.flatnonzero(runs[1:] != runs[:-1]) + 1
+    first = np.concatenate([[0], cut]) if len(runs) else cut  # where each stretch starts
+    size = np.diff(np.append(first, len(runs)))  # points per stretch
+    owner = runs[first]  # run of each stretch, relabelled by merges
+
+    def elevations(run):
+        at = owner == run
+        return np.concatenate([el[a:a + n] for a, n in zip(first[at], size[at])])
+
     while True:
-        ids, start, length = np.unique(runs, return_index=True, return_counts=True)
+        ids, of = np.unique(owner, return_inverse=True)
+        length = np.bincount(of, weights=size, minlength=len(ids)).astype(np.int64)
         short = np.flatnonzero(length < share * np.median(length))
         if len(ids) < 2 or not len(short):
             break
         k = short[np.argmin(length[short])]
-        med = [np.median(el[runs == ids[j]]) if 0 <= j < len(ids) else np.inf
+        med = [np.median(elevations(ids[j])) if 0 <= j < len(ids) else np.inf
                for j in (k - 1, k, k + 1)]
         into = k - 1 if abs(med[0] - med[1]) <= abs(med[2] - med[1]) else k + 1
-        runs[runs == ids[k]] = ids[into]
-    return np.unique(runs, return_inverse=True)[1]
+        owner[owner == ids[k]] = ids[into]
+    return np.repeat(np.unique(owner, return_inverse=True)[1], size)
 
 
 def recover_rings(points: np.ndarray, beams: int = 64) -> tuple[np.ndarray, str]:
-    """Ring per point (0 = top) of a KITTI-ordered scan, and the method that found it."""
+    """Ring per point (0 = top) of a KITTI-ordered scan, and the method that found it.
+
+    The azimuth is computed once for both seams. The runs come out in scan order (a short run
+    joins a neighbour: elevations are finite), so ring k is the slice of the scan between its
+    bounds, and its median elevation is taken on that slice instead of on a mask of the whole
+    scan per ring."""
     el = elevation(points)
+    az = np.arctan2(points[:, 1], points[:, 0])
     for seam in SEAMS if len(points) else ():
-        runs = merge_short_runs(rings_from_azimuth_wraps(points, seam=seam), el)
+        runs = merge_short_runs(rings_from_azimuth_wraps(points, seam=seam, az=az), el)
         if runs.max() + 1 == beams:
-            med = np.array([np.median(el[runs == k]) for k in range(beams)])
+            bounds = np.searchsorted(runs, np.arange(beams + 1))
+            med = np.array([_median(el[a:b]) for a, b in zip(bounds[:-1], bounds[1:])])
             rank = np.empty(beams, np.int64)
             rank[np.argsort(-med)] = np.arange(beams)
-            return rank[runs].astype(np.uint8), "azimuth-wrap"
+            return rank.astype(np.uint8)[runs], "azimuth-wrap"
     return rings_from_elevation(points, beams).astype(np.uint8), "elevation-kmeans"
