@@ -18,7 +18,8 @@ from .factors import factor_rng
 from .world import Part, World
 
 FACADE_KINDS = ("brick", "plaster")  # the tiles with windows (textures._windows)
-_WALL_DIRECTION, _WALL_OFFSET = 1e-4, 0.01  # faces this close in direction (unit vector) and offset (m) share a wall
+# Faces this close in direction (unit vector) and offset (m) share a wall.
+_WALL_DIRECTION, _WALL_OFFSET = 1e-4, 0.01
 
 
 @dataclass(frozen=True)

@@ -169,8 +169,8 @@ def _detect(spec: LidarSpec, rng: np.random.Generator, beta: float, tgt: Target,
     motion = spec.motion and tgt.first_moving < tgt.n_triangles
     lasers = _laser_tables(spec)
     return detect_rays(prim, tfar, ng, d_w, origins, tgt.tri_inv_ng, e32 if loss is None else loss,
-                       e32 if refl is None else refl, tgt.tri_refl, tgt.tri_expo, tgt.tri_actor, need, ext, u, spec.beams,
-                       rays.columns, lasers["dropout"], lasers["zero"], spec.detection,
+                       e32 if refl is None else refl, tgt.tri_refl, tgt.tri_expo, tgt.tri_actor, need,
+                       ext, u, spec.beams, rays.columns, lasers["dropout"], lasers["zero"], spec.detection,
                        spec.min_range, spec.max_range, motion, tgt.first_moving, tgt.tri_slot,
                        rays.time, tgt.placed_time, tgt.placed_origin, tgt.velocity, tgt.yaw_rate,
                        spec.range_exponent)

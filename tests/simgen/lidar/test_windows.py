@@ -18,7 +18,8 @@ from simgen.facets import triangles
 from simgen.lidar import preset, scan
 from simgen.lidar.scan import GLASS_R0
 from simgen.lidar.windows import CURTAIN_GAP_M, ROOM_DEPTH_M
-from simgen.materials import CURTAIN_REFLECTIVITY, FACADE_REFLECTIVITY, ROOM_REFLECTIVITY, WINDOW_TRANSMITTANCE
+from simgen.materials import (CURTAIN_REFLECTIVITY, FACADE_REFLECTIVITY, ROOM_REFLECTIVITY,
+                              WINDOW_TRANSMITTANCE)
 from simgen.rigs import onboard_rig
 from simgen.texture_layout import static_layout
 from simgen.world import Material, Part, Weather, World
