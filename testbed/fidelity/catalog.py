@@ -11,7 +11,7 @@ from typing import Callable, Protocol
 import numpy as np
 
 from .images import CANNY, NEAR_CAR_PX
-from .lidar import GROUND_M, NEAR_M
+from .lidar import FAR_M, GROUND_M, NEAR_M, SECTOR_DEG
 from .stats import DatasetStats, Draws
 
 
@@ -132,6 +132,13 @@ STATS: tuple[Stat, ...] = (
       for q in (10, 50, 90, 99)),
     Stat("lidar.beyond_40m_share", "share of returns beyond 40 m", "", med("lidar.beyond_40m")),
     Stat("lidar.beyond_80m_share", "share of returns beyond 80 m", "", med("lidar.beyond_80m")),
+    *(Stat(f"lidar.beyond_40m_{where}_share", f"share of returns beyond {FAR_M[0]:.0f} m, {what}", "",
+           med(f"lidar.beyond_40m_{where}"))
+      for where, what in (("ahead", f"within {SECTOR_DEG:.0f} deg of ahead"),
+                          ("beside", "beside the sensor"),
+                          ("behind", f"within {SECTOR_DEG:.0f} deg of behind"))),
+    Stat("lidar.far_height_m", f"median height of the returns beyond {FAR_M[0]:.0f} m above the road "
+         "plane", "m", med("lidar.far_height_m")),
     Stat("lidar.returns_per_ring", "returns per ring (median ring)", "",
          ring_median("lidar.ring_returns", np.median)),
     Stat("lidar.ring_elevation_top_deg", "elevation of the top ring", "deg",

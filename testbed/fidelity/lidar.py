@@ -18,6 +18,9 @@ RINGS = 64
 GROUND_M = 0.2  # a return this close to the fitted road plane is ground
 NEAR_M = 8.0  # m (bird's-eye): the near field, about half of a sweep's returns, split by side
 FAR_M = (40.0, 80.0)
+# Where the returns beyond FAR_M[0] lie: within this many degrees of straight ahead or behind,
+# or beside (a street's far end, its sides and side streets, what lies behind the car).
+SECTOR_DEG = 30.0
 PERCENTILES = (10, 50, 90, 99)
 
 
@@ -41,8 +44,10 @@ def lidar_stats(acc: Acc, scan: np.ndarray, calib: Calibration,
     bev = np.hypot(pts[:, 0], pts[:, 1])  # bird's-eye range
     _rings(acc, pts, bev)
     rect = calib.lidar_to_rect(pts)
-    ground = np.abs(height_above(rect, fit_ground_plane(rect))) < GROUND_M
+    height = height_above(rect, fit_ground_plane(rect))
+    ground = np.abs(height) < GROUND_M
     acc.put("lidar.ground_share", np.count_nonzero(ground) / len(pts))
+    _far(acc, pts, r > FAR_M[0], height)
     # where the ground share comes from: what stands beside the sensor on each side (LiDAR y left)
     near = bev < NEAR_M
     for side, m in (("left", near & (pts[:, 1] > 0)), ("right", near & (pts[:, 1] < 0))):
@@ -50,6 +55,19 @@ def lidar_stats(acc: Acc, scan: np.ndarray, calib: Calibration,
             acc.put(f"lidar.near_ground_{side}", np.count_nonzero(ground[m]) / np.count_nonzero(m))
     if labels is not None:
         _car_points(acc, rect, [o for o in labels if o.type == "Car"])
+
+
+def _far(acc: Acc, pts: np.ndarray, far: np.ndarray, height: np.ndarray) -> None:
+    """Where the far returns lie: their share of the sweep ahead, beside and behind the sensor
+    (SECTOR_DEG), and their median height above the fitted road plane. Alike shares in every
+    sector and alike heights say that a surplus of far returns is the view open more often,
+    not one kind of surface."""
+    bearing = np.degrees(np.abs(np.arctan2(pts[:, 1], pts[:, 0])))  # 0 ahead, 180 behind
+    ahead, behind = bearing < SECTOR_DEG, bearing >= 180.0 - SECTOR_DEG
+    for name, m in (("ahead", ahead), ("beside", ~ahead & ~behind), ("behind", behind)):
+        acc.put(f"lidar.beyond_40m_{name}", np.count_nonzero(far & m) / len(pts))
+    if far.any():
+        acc.put("lidar.far_height_m", np.median(height[far]))
 
 
 def _rings(acc: Acc, pts: np.ndarray, bev: np.ndarray) -> None:

@@ -72,11 +72,18 @@ def test_report_numbers_match_a_hand_computation_on_one_real_frame(real_root, tm
     grey = np.round(rgb @ [0.299, 0.587, 0.114])  # ITU-R BT.601, as cv2's BGR2GRAY
     dx = np.abs(np.diff(grey, axis=1))
     rect = read_calib(t / "calib/000000.txt").lidar_to_rect(scan[:, :3].astype(np.float64))
-    ground = np.abs(height_above(rect, fit_ground_plane(rect))) < 0.2
+    height = height_above(rect, fit_ground_plane(rect))
+    ground = np.abs(height) < 0.2
     near = np.hypot(scan[:, 0], scan[:, 1]) < 8.0
+    far = r > 40
+    bearing = np.degrees(np.abs(np.arctan2(scan[:, 1].astype(np.float64), scan[:, 0].astype(np.float64))))
     hand = {
         "lidar.points_per_sweep": (t / "velodyne/000000.bin").stat().st_size / 16,
-        "lidar.beyond_40m_share": np.mean(r > 40),
+        "lidar.beyond_40m_share": np.mean(far),
+        "lidar.beyond_40m_ahead_share": np.mean(far & (bearing < 30)),
+        "lidar.beyond_40m_beside_share": np.mean(far & (bearing >= 30) & (bearing < 150)),
+        "lidar.beyond_40m_behind_share": np.mean(far & (bearing >= 150)),
+        "lidar.far_height_m": np.median(height[far]),
         "lidar.range_p50_m": np.median(r),
         "lidar.reflectance_zero_share": np.mean(scan[:, 3] == 0),
         "lidar.reflectance_mean": scan[:, 3].astype(np.float64).mean(),
