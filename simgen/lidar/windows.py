@@ -43,14 +43,19 @@ class Windows:
     def n_walls(self) -> int:
         return len(self.walls)
 
+    @classmethod
+    def none(cls, n_triangles: int) -> Windows:
+        """No window on any of `n_triangles`."""
+        return cls(np.full(n_triangles, -1, np.int32), np.zeros((0, 8)), np.zeros((0, 0, 11)),
+                   np.zeros(0, np.int64))
+
 
 def windows_of(world: World, n_triangles: int) -> Windows:
     """The window table of `world`'s static parts, which come first among the `n_triangles` of
     the LiDAR's target, in the same order (simgen.lidar.target)."""
-    tri_wall = np.full(n_triangles, -1, np.int32)
     parts = list(world.static)
     if not parts:
-        return Windows(tri_wall, np.zeros((0, 8)), np.zeros((0, 0, 11)), np.zeros(0, np.int64))
+        return Windows.none(n_triangles)
     tris, normals = facets.triangles(parts)
     first = np.cumsum([0] + [len(p.mesh.faces) for p in parts])
     sets: dict = {}
@@ -66,8 +71,9 @@ def windows_of(world: World, n_triangles: int) -> Windows:
                                      np.full(len(own), w.tile[1]), np.full(len(own), k)]))
         faces.append(own)
     if not rows:
-        return Windows(tri_wall, np.zeros((0, 8)), np.zeros((0, 0, 11)), np.zeros(0, np.int64))
+        return Windows.none(n_triangles)
     own = np.concatenate(faces)
+    tri_wall = np.full(n_triangles, -1, np.int32)
     tri_wall[own] = np.arange(len(own))
     made = [textures.windows(kind, variant) for kind, variant in sets]
     panes = np.full((len(made), max(len(m) for m in made), 11), np.nan)
