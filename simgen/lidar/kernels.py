@@ -157,9 +157,7 @@ def window_returns(prim, tfar, d_w, origins, tri_wall, walls, panes, n_panes, lo
         c = abs(dx * ty - dy * tx)  # the wall's normal is (ty, -tx, 0)
         if c < 1e-6:
             continue
-        fresnel = r0 + (1.0 - r0) * (1.0 - min(c, 1.0)) ** 5
-        q2 = ((1.0 - fresnel) / (1.0 - r0)) ** 2
-        tr = t_unit * q2 * q2
+        tr = _pane(t_unit, c, r0) * _pane(1.0, c, r0)  # two panes: the unit's value, four faces
         if panes[k, j, 6] > 0.0:
             path = gap / c
             rho = curtain_refl * c
