@@ -5,9 +5,10 @@ is the excess one kind of surface, or the same view open more often?).
     .venv/bin/python benchmarks/far_where.py --sim data/fidelity/urban200_win \\
         --real ../shared/kitti_real_dev [--range 40]
 
-Height: z in the LiDAR frame plus KITTI's mounting height (1.73 m), i.e. above a flat road under
-the sensor. Bearing: ahead, beside or behind the car (within 30 deg of the axis ahead or behind).
-Per frame, as a share of all its returns; the median over frames.
+Far: the range from the sensor beyond `--range`, and the bearings' sectors, as the fidelity
+report's rows (`testbed.fidelity.lidar`: FAR_M, SECTOR_DEG), which give their medians per frame;
+this adds the pooled heights. Height: z in the LiDAR frame plus KITTI's mounting height (1.73 m),
+i.e. above a flat road under the sensor.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from tqdm import tqdm
 
 from kitti.velodyne import read_velodyne
 from simgen.rigs import KITTI_LIDAR_HEIGHT
+from testbed.fidelity.lidar import FAR_M, SECTOR_DEG
 
 BANDS = ((-np.inf, 0.5), (0.5, 3.0), (3.0, np.inf))  # m above the road (the top beam, +2 deg, is
 # 4.5 m up at 80 m)
@@ -31,11 +33,12 @@ def far_returns(root: Path, far: float) -> tuple[np.ndarray, np.ndarray]:
     heights, shares = [], []
     files = sorted((root / "training" / "velodyne").glob("*.bin"))
     for f in tqdm(files, desc=root.name, leave=False):
-        p = read_velodyne(f)
-        beyond = np.hypot(p[:, 0], p[:, 1]) > far
-        bearing = np.abs(np.degrees(np.arctan2(p[:, 1], p[:, 0])))
+        p = read_velodyne(f)[:, :3].astype(np.float64)
+        beyond = np.sqrt(np.einsum("ij,ij->i", p, p)) > far
+        bearing = np.degrees(np.abs(np.arctan2(p[:, 1], p[:, 0])))
         heights.append(p[beyond, 2] + KITTI_LIDAR_HEIGHT)
-        sectors = [bearing < 30, (bearing >= 30) & (bearing < 150), bearing >= 150]
+        ahead, behind = bearing < SECTOR_DEG, bearing >= 180.0 - SECTOR_DEG
+        sectors = [ahead, ~ahead & ~behind, behind]
         shares.append([(beyond & s).sum() / len(p) for s in sectors] + [beyond.mean()])
     return np.concatenate(heights), np.array(shares)
 
@@ -44,7 +47,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sim", type=Path, required=True)
     ap.add_argument("--real", type=Path, required=True)
-    ap.add_argument("--range", type=float, default=40.0, dest="far")
+    ap.add_argument("--range", type=float, default=FAR_M[0], dest="far")
     args = ap.parse_args()
     print(f"| returns beyond {args.far:g} m | real | sim |\n|---|---|---|")
     rows: dict[str, list[str]] = {}
