@@ -64,9 +64,9 @@ def main() -> None:
     print(f"{args.spec}, {args.frames} frames (seed {args.seed}): {100 * total / n:.2f} % of the "
           f"returns lie beyond {args.far:g} m")
     print(f"| material | share of all returns beyond {args.far:g} m (%) | share of the material's "
-          "returns that lie beyond (%) |\n|---|---|---|")
+          f"returns that lie beyond (%) | share of all returns (%) |\n|---|---|---|---|")
     for name, k in far.most_common():
-        print(f"| {name} | {100 * k / n:.2f} | {100 * k / every[name]:.1f} |")
+        print(f"| {name} | {100 * k / n:.2f} | {100 * k / every[name]:.1f} | {100 * every[name] / n:.2f} |")
 
 
 if __name__ == "__main__":
