@@ -81,6 +81,11 @@ RIM_SHARE = 406.0 / 632.0
 # Rims stand 8 mm proud of the tyre (in unit frames 0.008 of the width): 24-bit depth over the
 # camera's 0.3-400 m resolves about 1.3 mm at 80 m, so the rim never z-fights the tyre.
 RIM_PROUD = 0.008
+# Bumper covers: painted in the body's colour on the passenger cars of KITTI's years (VW Golf
+# IV-VI, Passat B5-B7, Opel Astra G-J, BMW 3 series E46/E90, Mercedes A/B/C classes of 1997-2011;
+# read off makers' photographs, no survey), the unpainted black plastic kept to a strip along
+# the bottom: a valance or diffuser 2-8 cm tall (m), drawn per bumper.
+VALANCE = (0.02, 0.08)
 # EU number plates: 520 x 110 mm (DIN 74069).
 PLATE_W, PLATE_H = 0.52, 0.11
 ROOF = 0.05  # m: roof panel over the glass
@@ -341,10 +346,10 @@ def _car_layout(rng, dims) -> _CarLayout:
 
 def _car(rng, c: Material, dims) -> list[Part]:
     """A car built in metres (fit_parts then makes its extent exact): a body rounded at the
-    corners, a glass cabin with pillars under a roof, black bumpers, sills and grille, mirrors
-    (the box's width), round tyres with rims, lamps and plates."""
+    corners, a glass cabin with pillars under a roof, painted bumpers over black valances, black
+    sills and grille, mirrors (the box's width), round tyres with rims, lamps and plates."""
     k = _car_layout(rng, dims)
-    return _car_body(rng, k, c) + _car_ends(rng, k, dims[2]) + _car_sides(k, c)
+    return _car_body(rng, k, c) + _car_ends(rng, k, dims[2], c) + _car_sides(k, c)
 
 
 def _car_body(rng, k: _CarLayout, c: Material) -> list[Part]:
@@ -377,20 +382,24 @@ def _rear_pillars(quad: np.ndarray, share: float) -> list[Shape]:
     return [hexahedron(np.concatenate([q - 0.005 * n, q + 0.012 * n])) for q in bands]
 
 
-def _car_ends(rng, k: _CarLayout, l: float) -> list[Part]:
-    """Black bumpers wrapping 0.27 m round the sides, the plates (the front one on the bumper,
-    the rear one above it), the grille, head and tail lamps."""
+def _car_ends(rng, k: _CarLayout, l: float, paint: Material) -> list[Part]:
+    """Bumpers wrapping 0.27 m round the sides, painted in the body's colour above a black
+    valance (VALANCE), the plates (the front one on the bumper, the rear one above it), the
+    grille, head and tail lamps."""
     z0 = k.sill + 0.03
     tops = [min(z0 + rng.uniform(0.20, 0.28), k.nose - 0.17) for _ in range(2)]
+    valances = rng.uniform(*VALANCE, 2)
     parts = []
     hw, c = k.body + 0.005, 0.13
-    for x_end, sgn, z1 in ((l / 2, 1.0, tops[0]), (-l / 2, -1.0, tops[1])):
+    for x_end, sgn, z1, v in ((l / 2, 1.0, tops[0], valances[0]), (-l / 2, -1.0, tops[1], valances[1])):
         x = x_end - sgn * np.array([0.0, 0.0, c, 0.40 - c, 0.40, 0.40, 0.40 - c, c])
-        bumper = _extrude(np.column_stack((x, [c - hw, hw - c, hw, hw, hw - c, c - hw, -hw, -hw])), 2, z0, z1)
+        plan = np.column_stack((x, [c - hw, hw - c, hw, hw, hw - c, c - hw, -hw, -hw]))
         pz = (z0 + z1) / 2 if sgn > 0 else z1 + 0.03 + PLATE_H / 2
         px = x_end - 0.001 if sgn > 0 else k.back
-        parts += [Part(bumper, TRIM), Part(_box(px - 0.005, px + 0.005, -PLATE_W / 2, PLATE_W / 2,
-                                                pz - PLATE_H / 2, pz + PLATE_H / 2), PLATE)]
+        valance = _box(x_end, x_end - sgn * 0.40, c - hw, hw - c, z0, z0 + v)  # inside the corners
+        parts += [Part(valance, TRIM), Part(_extrude(plan, 2, z0 + v, z1), paint),
+                  Part(_box(px - 0.005, px + 0.005, -PLATE_W / 2, PLATE_W / 2,
+                            pz - PLATE_H / 2, pz + PLATE_H / 2), PLATE)]
     parts.append(Part(_box(k.front - 0.02, k.front + 0.006, 0.44 - k.body, k.body - 0.44, tops[0] - 0.01,
                           k.nose - 0.12), TRIM))
     for s in (-1, 1):

@@ -104,10 +104,11 @@ def test_car_styles_follow_height_and_length():
 
 
 def test_a_car_stays_within_twice_the_old_triangle_budget():
-    """The previous car had 324 triangles; the renderer and the LiDAR pay for every one."""
+    """The previous car had 324 triangles; the renderer and the LiDAR pay for every one. Twice
+    that, and the two bumpers' black valances (a box each) on top."""
     rng = np.random.default_rng(7)
     counts = [sum(len(p.mesh.faces) for p in build_actor_parts(sample_recipe("Car", rng))) for _ in range(50)]
-    assert max(counts) <= 2 * 324
+    assert max(counts) <= 2 * 324 + 2 * 12
 
 
 @pytest.mark.parametrize("cls", ["Car", "Pedestrian", "Cyclist"])
@@ -156,3 +157,31 @@ def test_the_rear_window_has_body_coloured_pillars_on_its_plane():
             low = s.vertices[np.isclose(s.vertices[:, 2], s.vertices[:, 2].min(), atol=0.02)]
             assert np.ptp(low[:, 1]) == pytest.approx(REAR_PILLAR * width, rel=0.02)
             assert np.abs(low[:, 1]).max() == pytest.approx(width / 2, abs=0.01)
+
+
+def test_bumpers_show_the_body_colour_above_a_thin_black_valance():
+    """A column of rays from behind (and one from in front), 0.3 m off the centre line (clear of
+    the plate), read the car's end from the ground up: the black valance, VALANCE tall, with at
+    most the body's bottom edge under it, and straight above it the bumper in the body's paint."""
+    from simgen.meshes import VALANCE
+    from simgen.shadows import embree_scene
+
+    rng = np.random.default_rng(5)
+    z = np.arange(0.0, 1.0, 0.002) + 0.001
+    for _ in range(10):
+        recipe = sample_recipe("Car", rng)
+        parts = build_actor_parts(recipe)
+        l = recipe["dims"][2]
+        names = np.repeat([p.material.name for p in parts] + [""], [len(p.mesh.faces) for p in parts] + [1])
+        starts = np.cumsum([0] + [len(p.mesh.vertices) for p in parts])
+        scene = embree_scene(np.concatenate([p.mesh.vertices for p in parts]),
+                             np.concatenate([p.mesh.faces + k for p, k in zip(parts, starts)]))
+        for sgn in (-1.0, 1.0):  # from behind, from in front
+            origins = np.c_[np.full_like(z, sgn * (l / 2 + 1.0)), np.full_like(z, 0.3), z]
+            seen = names[scene.run(origins.astype(np.float32),
+                                   np.tile(np.float32([-sgn, 0.0, 0.0]), (len(z), 1)))]  # -1: none
+            lowest = np.flatnonzero(seen == "trim")[0]
+            assert np.sum(seen[:lowest] != "") <= 20  # under it, at most the body's 4 cm bottom edge
+            black = np.flatnonzero(seen[lowest:] != "trim")[0]
+            assert VALANCE[0] - 0.004 <= black * 0.002 <= VALANCE[1] + 0.004
+            assert np.all(seen[lowest + black:lowest + black + 75] == "paint")  # the next 15 cm
