@@ -84,7 +84,7 @@ RIM_PROUD = 0.008
 # Bumper covers: painted in the body's colour on the passenger cars of KITTI's years (VW Golf
 # IV-VI, Passat B5-B7, Opel Astra G-J, BMW 3 series E46/E90, Mercedes A/B/C classes of 1997-2011;
 # read off makers' photographs, no survey), the unpainted black plastic kept to a strip along
-# the bottom: a valance or diffuser 2-8 cm tall (m), drawn per bumper.
+# the bottom: a valance or diffuser, its height (m) drawn per bumper.
 VALANCE = (0.02, 0.08)
 # EU number plates: 520 x 110 mm (DIN 74069).
 PLATE_W, PLATE_H = 0.52, 0.11
