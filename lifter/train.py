@@ -93,27 +93,34 @@ def class_means(s: Samples) -> list[list[float]]:
 
 
 @torch.no_grad()
-def evaluate(net: SizeOrientationNet, s: Samples, size: int, bs: int = 128,
-             mirror: bool = False) -> dict[str, float]:
-    """Loss, size and alpha errors on samples; `mirror` averages each crop with its mirror image
-    as inference does (`lifter.predictor.forward_mirrored`). Training validates without it, as it
-    did when the shipped weights were trained: their documented commands pick the same epoch."""
+def errors(net: SizeOrientationNet, s: Samples, size: int, bs: int = 128,
+           mirror: bool = False) -> tuple[float, np.ndarray, np.ndarray]:
+    """The mean loss on samples, each sample's absolute size errors (N, 3, m) and its absolute
+    alpha error (N, deg); `mirror` averages each crop with its mirror image as inference does
+    (`lifter.predictor.forward_mirrored`)."""
     net.eval()
-    losses, dims_err, ang_err, n = [], [], [], 0
+    losses, dims_err, ang_err = [], [], []
     for start in range(0, len(s.cls), bs):
         idx = np.arange(start, min(start + bs, len(s.cls)))
         x, cls, dims_t, bin_t, cs_t, cover_t = batch(s, idx, size, None)
         out = forward_mirrored(net, x, cls, mirror)
         loss, _ = loss_fn(out, dims_t, bin_t, cs_t, cover_t)
         losses.append(float(loss) * len(idx))
-        n += len(idx)
         dims_err.append(np.abs(out[0].numpy() - dims_t.numpy()))
         a = decode(out[1].numpy(), out[2].numpy())
         ang_err.append(np.abs(wrap(a - s.alpha[idx])))
-    de, ae = np.concatenate(dims_err), np.rad2deg(np.concatenate(ang_err))
-    return {"loss": sum(losses) / n, "dims_mae_m": float(de.mean()),
+    return sum(losses) / len(s.cls), np.concatenate(dims_err), np.rad2deg(np.concatenate(ang_err))
+
+
+def evaluate(net: SizeOrientationNet, s: Samples, size: int, bs: int = 128,
+             mirror: bool = False) -> dict[str, float]:
+    """Loss, size and alpha errors on samples (`errors`), summed up. Training validates without
+    the mirror, as it did when the shipped weights were trained: their documented commands pick
+    the same epoch."""
+    loss, de, ae = errors(net, s, size, bs, mirror)
+    return {"loss": loss, "dims_mae_m": float(de.mean()),
             "alpha_median_deg": float(np.median(ae)), "alpha_within_30deg": float((ae < 30).mean()),
-            "n": n}
+            "n": len(ae)}
 
 
 def _split_ids(ds: KittiDataset, root: Path, train_split: str | None,
