@@ -1,5 +1,5 @@
 """Size and orientation network on the labelled objects of a KITTI root (made for the real dev
-frames): the same crops and figures as training's validation (`lifter.train.evaluate`: size MAE,
+frames): the same crops and figures as training's validation (`lifter.train.errors`, `summary`: size MAE,
 median alpha error, share within 30 degrees), for one or more weight files side by side, each
 on the crops as seen and averaged with their mirror images (as `lifter.predictor` infers).
 With more than one file, each after the first is also compared with it crop by crop (read with
@@ -19,7 +19,7 @@ from scipy.stats import binomtest
 
 from kitti.dataset import KittiDataset
 from lifter.predictor import load_network
-from lifter.train import collect, errors, evaluate
+from lifter.train import collect, errors, summary
 
 SHIFT_DEG = 20.0  # a crop whose alpha error moves by more than this moved, not jittered
 
@@ -41,13 +41,12 @@ def main() -> None:
         net = load_network(path)
         samples = collect(ds, ds.ids(args.split), net.cfg.crop, "eval")
         for mirror in (False, True):
-            with torch.no_grad():
-                m = evaluate(net, samples, net.cfg.crop, mirror=mirror)
+            per_crop = errors(net, samples, net.cfg.crop, mirror=mirror)
+            m = summary(*per_crop)
             print(f"| {path} | {'with mirror' if mirror else 'as seen'} | {m['n']} | "
                   f"{m['dims_mae_m']:.3f} | {m['alpha_median_deg']:.1f} | "
                   f"{100 * m['alpha_within_30deg']:.0f} % |")
-        with torch.no_grad():
-            alpha[path] = errors(net, samples, net.cfg.crop, mirror=True)[2]
+        alpha[path] = per_crop[2]  # read with the mirror, as inference reads
     first, *others = args.weights
     if others:
         print(f"\nCrop by crop against {first} (with mirror): alpha error grown / shrunk by more "

@@ -117,7 +117,12 @@ def evaluate(net: SizeOrientationNet, s: Samples, size: int, bs: int = 128,
     """Loss, size and alpha errors on samples (`errors`), summed up. Training validates without
     the mirror, as it did when the shipped weights were trained: their documented commands pick
     the same epoch."""
-    loss, de, ae = errors(net, s, size, bs, mirror)
+    return summary(*errors(net, s, size, bs, mirror))
+
+
+def summary(loss: float, de: np.ndarray, ae: np.ndarray) -> dict[str, float]:
+    """`errors`' per-sample figures as training logs them: mean loss, size MAE, median alpha
+    error and the share within 30 degrees."""
     return {"loss": loss, "dims_mae_m": float(de.mean()),
             "alpha_median_deg": float(np.median(ae)), "alpha_within_30deg": float((ae < 30).mean()),
             "n": len(ae)}

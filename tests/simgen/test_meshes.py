@@ -163,6 +163,7 @@ def test_bumpers_show_the_body_colour_above_a_thin_black_valance():
     """A column of rays from behind (and one from in front), 0.3 m off the centre line (clear of
     the plate), read the car's end from the ground up: the black valance, VALANCE tall, with at
     most the body's bottom edge under it, and straight above it the bumper in the body's paint."""
+    from simgen.facets import shared
     from simgen.meshes import VALANCE
     from simgen.shadows import embree_scene
 
@@ -173,9 +174,7 @@ def test_bumpers_show_the_body_colour_above_a_thin_black_valance():
         parts = build_actor_parts(recipe)
         l = recipe["dims"][2]
         names = np.repeat([p.material.name for p in parts] + [""], [len(p.mesh.faces) for p in parts] + [1])
-        starts = np.cumsum([0] + [len(p.mesh.vertices) for p in parts])
-        scene = embree_scene(np.concatenate([p.mesh.vertices for p in parts]),
-                             np.concatenate([p.mesh.faces + k for p, k in zip(parts, starts)]))
+        scene = embree_scene(*shared(parts))
         for sgn in (-1.0, 1.0):  # from behind, from in front
             origins = np.c_[np.full_like(z, sgn * (l / 2 + 1.0)), np.full_like(z, 0.3), z]
             seen = names[scene.run(origins.astype(np.float32),
