@@ -4,24 +4,53 @@ median alpha error, share within 30 degrees), for one or more weight files side 
 on the crops as seen and averaged with their mirror images (as `lifter.predictor` infers).
 With more than one file, each after the first is also compared with it crop by crop (read with
 the mirror): how many crops' alpha error grew or shrank by more than SHIFT_DEG, and the exact
-two-sided sign test of those counts.
+two-sided sign test of those counts. `--by-view` splits the alpha errors (read with the mirror)
+by class and by the side the camera sees (alpha within 45 deg of -90: from behind; of +90: from
+in front; else from the side), with the share of crops read more than 90 deg off: a front read as
+a back or the reverse.
 
     .venv/bin/python benchmarks/sizeori_real.py --data ../shared/kitti_real_dev \
-        --weights lifter/weights/sizeori_mnv2_w050_s96.pt [--weights OTHER.pt ...]
+        --weights lifter/weights/sizeori_mnv2_w050_s96.pt [--weights OTHER.pt ...] [--by-view]
 """
 
 from __future__ import annotations
 
 import argparse
 
+import numpy as np
 import torch
 from scipy.stats import binomtest
 
 from kitti.dataset import KittiDataset
+from lifter.multibin import wrap
+from lifter.network import CLASSES
 from lifter.predictor import load_network
-from lifter.train import collect, errors, summary
+from lifter.train import Samples, collect, errors, summary
 
 SHIFT_DEG = 20.0  # a crop whose alpha error moves by more than this moved, not jittered
+VIEWS = ("behind", "in front", "the side")
+
+
+def views(alpha: np.ndarray) -> np.ndarray:
+    """Index into VIEWS of each true alpha: the camera sees the object's back at alpha -90 deg,
+    its front at +90 deg."""
+    return np.where(np.abs(wrap(alpha + np.pi / 2)) < np.pi / 4, 0,
+                    np.where(np.abs(wrap(alpha - np.pi / 2)) < np.pi / 4, 1, 2))
+
+
+def by_view(samples: Samples, alpha_err: dict[str, np.ndarray]) -> None:
+    """Median alpha error and share more than 90 deg off, per class and view, per weight file."""
+    head = " | ".join(f"{p}: median / > 90 deg" for p in alpha_err)
+    print(f"\nBy class and view (with mirror)\n\n| class | seen from | crops | {head} |")
+    print("|---|---|---|" + "---|" * len(alpha_err))
+    view = views(samples.alpha)
+    for k, name in enumerate(CLASSES):
+        for v, seen in enumerate(VIEWS):
+            sel = (samples.cls == k) & (view == v)
+            if sel.any():
+                cells = " | ".join(f"{np.median(e[sel]):.1f} / {100 * np.mean(e[sel] > 90):.0f} %"
+                                   for e in alpha_err.values())
+                print(f"| {name} | {seen} | {sel.sum()} | {cells} |")
 
 
 def main() -> None:
@@ -29,6 +58,7 @@ def main() -> None:
     ap.add_argument("--data", required=True)
     ap.add_argument("--split", default=None, help="ImageSets name (default: every frame)")
     ap.add_argument("--weights", action="append", required=True)
+    ap.add_argument("--by-view", action="store_true", help="alpha errors by class and view")
     args = ap.parse_args()
     torch.set_num_threads(1)
     ds = KittiDataset(args.data)
@@ -57,6 +87,8 @@ def main() -> None:
         grown, shrunk = int((moved > SHIFT_DEG).sum()), int((moved < -SHIFT_DEG).sum())
         p = binomtest(grown, grown + shrunk).pvalue if grown + shrunk else 1.0
         print(f"| {path} | {grown} | {shrunk} | {p:.3f} |")
+    if args.by_view:
+        by_view(samples, alpha)
 
 
 if __name__ == "__main__":
