@@ -42,6 +42,20 @@ _PAINT_SHARE = np.array([0.24, 0.20, 0.16, 0.14, 0.09, 0.09, 0.04, 0.04])
 _CLOTHES = np.array([[0.05, 0.05, 0.08], [0.10, 0.15, 0.35], [0.45, 0.05, 0.05], [0.35, 0.35, 0.35],
                      [0.60, 0.55, 0.45], [0.08, 0.25, 0.10], [0.70, 0.70, 0.70]])
 _SKIN = np.array([[0.80, 0.60, 0.48], [0.55, 0.38, 0.27], [0.30, 0.19, 0.13]])
+# Hair, natural colours from black through brown and blond to grey (linear RGB; no survey of the
+# shares: drawn evenly), over the back and the top of the head; the face stays bare. Shoes black,
+# brown or white. Before them a person was the same seen from in front and from behind, and a
+# network could not learn which way a pedestrian faces from generated images.
+_HAIR = np.array([[0.02, 0.018, 0.015], [0.06, 0.04, 0.03], [0.15, 0.10, 0.06], [0.35, 0.27, 0.17],
+                  [0.40, 0.40, 0.40]])
+_SHOES = np.array([[0.03, 0.03, 0.03], [0.12, 0.07, 0.04], [0.70, 0.70, 0.70]])
+# A foot is 0.152 of the stature long and 0.055 broad, the ankle 0.039 high (Drillis and Contini's
+# segment lengths, as tabulated in D. A. Winter, "Biomechanics and Motor Control of Human
+# Movement"); the ankle stands a quarter of the foot's length in front of the heel.
+FOOT = (0.152, 0.055, 0.039)
+# The hairline: the hair covers the head where it lies behind HAIRLINE[0] of the head's depth in
+# front of its centre, or above HAIRLINE[1] of its height over the centre (the forehead).
+HAIRLINE = (0.25, 0.45)
 
 # Car bodies. KITTI's Car class holds cars, SUVs and MPVs: the tall SUV/MPV profile from
 # SUV_HEIGHT up (makers' heights: VW Tiguan 1.69 m, BMW X3 F25 1.68, VW Touran 1.63, Nissan Qashqai
@@ -93,6 +107,13 @@ ROOF = 0.05  # m: roof panel over the glass
 # glass face's width (read off makers' rear views, Golf VI and Passat B7; no survey). Without
 # them the whole back of the cabin is glass, which no real car shows.
 REAR_PILLAR = 0.10
+# A van's rear glass, in its unit frame: bottom and top (share of the height) and half width
+# (share of the body's), drawn per van. The vans of KITTI's streets (VW T4/T5 Transporter,
+# Caravelle and Multivan, Mercedes Vito/Viano and Sprinter, Ford Transit; read off makers' rear
+# views, no survey) show a glazed tailgate or glazed rear doors from the waist to just under the
+# roof, the width of the body less its D pillars. Without it the front was a van's only glass,
+# and the size/orientation network read real vans seen from behind as seen from in front.
+VAN_REAR_GLASS = ((0.56, 0.62), (0.84, 0.90), (0.72, 0.86))
 
 # The emissive look of lamp materials at night (renderer): name -> linear RGB emission.
 EMISSIVE = {"headlight": (4.0, 4.0, 3.6), "taillight": (2.5, 0.05, 0.05)}
@@ -464,8 +485,11 @@ def _van(rng, c: Material, dims) -> list[Part]:
                    [nose - 0.10, b - 0.04, 0.50], [nose - 0.10, 0.06 - b, 0.86],
                    [nose - 0.10, b - 0.06, 0.86]])
     side_windows = [_box(-0.15, nose - 0.11, s * b - 0.005, s * b + 0.005, 0.60, 0.82) for s in (-1, 1)]
+    (z0, z1), (z2, z3), (y0, y1) = VAN_REAR_GLASS
+    half = b * rng.uniform(y0, y1)
+    rear_glass = _box(-0.505, -0.495, -half, half, rng.uniform(z0, z1), rng.uniform(z2, z3))
     r = 0.16
-    return [Part(body, c), Part(upper, c), Part(shield, GLASS),
+    return [Part(body, c), Part(upper, c), Part(shield, GLASS), Part(rear_glass, GLASS),
             *[Part(m, GLASS) for m in side_windows], *_wheels((0.32, -0.32), b, r, 0.11, r * h / l),
             *[Part(_box(sgn * 0.47, sgn * 0.503, -b - 0.004, b + 0.004, 0.10, 0.25), TRIM)
               for sgn in (-1, 1)],  # bumpers
@@ -542,9 +566,29 @@ def _head(centre) -> Shape:
     return Shape(trimesh.transformations.transform_points(head.vertices, move), head.faces)
 
 
+@functools.cache
+def _hair_template() -> Shape:
+    """The hair over the head template (HAIRLINE), 4 % proud of it so that the skin under it
+    stays hidden: the hull of the head's points behind the hairline or above the forehead."""
+    v = _head_template().vertices
+    half = np.ptp(v, axis=0) / 2
+    keep = (v[:, 0] <= HAIRLINE[0] * half[0]) | (v[:, 2] >= HAIRLINE[1] * half[2])
+    shape = hull(1.04 * v[keep])
+    shape.vertices.flags.writeable = shape.faces.flags.writeable = False  # shared by every caller
+    return shape
+
+
+def _fibre(name: str, palette: np.ndarray, rng) -> Material:
+    """Hair or shoes in a colour of the palette; at 905 nm read as clothes' fibres are
+    (`textile_reflectivity`: no measurement of hair or shoe leather at 905 nm to hand)."""
+    colour = tuple(float(v) for v in palette[rng.integers(len(palette))])
+    return Material(name, colour, textile_reflectivity(colour))
+
+
 def _person(rng, clothes: Material, skin: Material, stride: float, lean: float = 0.0,
             sitting_on_bike: bool = False) -> list[Part]:
-    """A person 1.0 tall, x forward: legs, torso, arms, head."""
+    """A person 1.0 tall, x forward: legs and feet, torso, arms, head and hair."""
+    hair, shoes = _fibre("hair", _HAIR, rng), _fibre("shoes", _SHOES, rng)
     hip = np.array([0.0, 0.0, 0.50])
     shoulder_z = 0.80
     parts = []
@@ -557,10 +601,13 @@ def _person(rng, clothes: Material, skin: Material, stride: float, lean: float =
         feet = [np.array([stride / 2, -0.07, 0.0]), np.array([-stride / 2, 0.07, 0.0])]
         knees = [np.array([stride / 4, -0.07, 0.27]), np.array([-stride / 4, 0.07, 0.27])]
         shoulder = np.array([lean, 0.0, shoulder_z])
+    length, breadth, ankle = FOOT
     for f, k, s in zip(feet, knees, (-1, 1)):
         h = hip + [0, s * 0.07, 0]
         parts.append(Part(_limb(f + [0, 0, 0.03], k, 0.045), clothes))
         parts.append(Part(_limb(k, h, 0.055), clothes))
+        parts.append(Part(_box(f[0] - length / 4, f[0] + 3 * length / 4, f[1] - breadth / 2,
+                               f[1] + breadth / 2, f[2], f[2] + ankle), shoes))
     torso = hull([hip + [dx, dy, 0] for dx in (-0.07, 0.07) for dy in (-0.13, 0.13)]
                  + [shoulder + [dx, dy, 0] for dx in (-0.08, 0.08) for dy in (-0.18, 0.18)])
     parts.append(Part(torso, clothes))
@@ -571,7 +618,9 @@ def _person(rng, clothes: Material, skin: Material, stride: float, lean: float =
         else:
             hand = top + [-s * stride * 0.3, s * 0.03, -0.33]
         parts.append(Part(_limb(top, hand, 0.035), clothes))
-    parts.append(Part(_head(shoulder + [0.01, 0, 0.09]), skin))
+    head = shoulder + [0.01, 0, 0.09]
+    parts.append(Part(_head(head), skin))
+    parts.append(Part(Shape(_hair_template().vertices + head, _hair_template().faces), hair))
     return parts
 
 

@@ -77,7 +77,9 @@ TEMPERATURE = {"asphalt": 0.42, "marking": 0.40, "curb": 0.38, "sidewalk": 0.38,
                "pole": 0.28, "fence": 0.30, "sign_white": 0.30, "sign_yellow": 0.30, "sign_red": 0.30,
                "sign_blue": 0.30, "signal_lens": 0.60, "bin": 0.32,
                "paint": 0.45, "trim": 0.45, "rim": 0.50, "glass": 0.28, "tyre": 0.55, "plate": 0.42,
-               "headlight": 0.80, "taillight": 0.70, "bike_frame": 0.40, "skin": 0.97, "clothes": 0.78, "user": 0.50}
+               "headlight": 0.80, "taillight": 0.70, "bike_frame": 0.40, "skin": 0.97, "clothes": 0.78,
+               "hair": 0.78, "shoes": 0.78,  # they cover the body as clothes do
+               "user": 0.50}
 _WARM_WHEN_MOVING = {"tyre": 0.30, "paint": 0.10}
 
 
