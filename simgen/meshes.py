@@ -620,7 +620,8 @@ def _person(rng, clothes: Material, skin: Material, stride: float, lean: float =
         parts.append(Part(_limb(top, hand, 0.035), clothes))
     head = shoulder + [0.01, 0, 0.09]
     parts.append(Part(_head(head), skin))
-    parts.append(Part(Shape(_hair_template().vertices + head, _hair_template().faces), hair))
+    hair_shape = _hair_template()
+    parts.append(Part(Shape(hair_shape.vertices + head, hair_shape.faces), hair))
     return parts
 
 

@@ -159,13 +159,22 @@ def test_the_rear_window_has_body_coloured_pillars_on_its_plane():
             assert np.abs(low[:, 1]).max() == pytest.approx(width / 2, abs=0.01)
 
 
+def _seen_along_x(parts, origins: np.ndarray, sgn: float) -> np.ndarray:
+    """The material name each ray from `origins` along -sgn x meets first ("" for none)."""
+    from simgen.facets import shared
+    from simgen.shadows import embree_scene
+
+    names = np.repeat([p.material.name for p in parts] + [""], [len(p.mesh.faces) for p in parts] + [1])
+    hits = embree_scene(*shared(parts)).run(origins.astype(np.float32),
+                                            np.tile(np.float32([-sgn, 0.0, 0.0]), (len(origins), 1)))
+    return names[hits]  # -1: none
+
+
 def test_bumpers_show_the_body_colour_above_a_thin_black_valance():
     """A column of rays from behind (and one from in front), 0.3 m off the centre line (clear of
     the plate), read the car's end from the ground up: the black valance, VALANCE tall, with at
     most the body's bottom edge under it, and straight above it the bumper in the body's paint."""
-    from simgen.facets import shared
     from simgen.meshes import VALANCE
-    from simgen.shadows import embree_scene
 
     rng = np.random.default_rng(5)
     z = np.arange(0.0, 1.0, 0.002) + 0.001
@@ -173,12 +182,9 @@ def test_bumpers_show_the_body_colour_above_a_thin_black_valance():
         recipe = sample_recipe("Car", rng)
         parts = build_actor_parts(recipe)
         l = recipe["dims"][2]
-        names = np.repeat([p.material.name for p in parts] + [""], [len(p.mesh.faces) for p in parts] + [1])
-        scene = embree_scene(*shared(parts))
         for sgn in (-1.0, 1.0):  # from behind, from in front
             origins = np.c_[np.full_like(z, sgn * (l / 2 + 1.0)), np.full_like(z, 0.3), z]
-            seen = names[scene.run(origins.astype(np.float32),
-                                   np.tile(np.float32([-sgn, 0.0, 0.0]), (len(z), 1)))]  # -1: none
+            seen = _seen_along_x(parts, origins, sgn)
             lowest = np.flatnonzero(seen == "trim")[0]
             assert np.sum(seen[:lowest] != "") <= 20  # under it, at most the body's 4 cm bottom edge
             black = np.flatnonzero(seen[lowest:] != "trim")[0]
@@ -191,23 +197,18 @@ def test_a_van_shows_glass_from_behind_as_from_in_front():
     """Rays along the van's length at three-quarters of its height, across the middle half of its
     width, meet glass first from in front (the windscreen) and from behind (the rear glass,
     VAN_REAR_GLASS): the glass alone does not tell a van's front from its back."""
-    from simgen.facets import shared
     from simgen.meshes import VAN_REAR_GLASS
-    from simgen.shadows import embree_scene
 
     rng = np.random.default_rng(6)
     for _ in range(10):
         recipe = sample_recipe("Van", rng)
         parts = build_actor_parts(recipe)
         h, w, l = recipe["dims"]
-        names = np.repeat([p.material.name for p in parts] + [""], [len(p.mesh.faces) for p in parts] + [1])
-        scene = embree_scene(*shared(parts))
         y = np.linspace(-w / 4, w / 4, 21)
         for sgn in (-1.0, 1.0):  # from behind, from in front
             z = (VAN_REAR_GLASS[0][1] + VAN_REAR_GLASS[1][0]) / 2 * h if sgn < 0 else 0.75 * h
             origins = np.c_[np.full_like(y, sgn * (l / 2 + 1.0)), y, np.full_like(y, z)]
-            seen = names[scene.run(origins.astype(np.float32),
-                                   np.tile(np.float32([-sgn, 0.0, 0.0]), (len(y), 1)))]
+            seen = _seen_along_x(parts, origins, sgn)
             assert np.all(seen == "glass"), (sgn, seen)
 
 
@@ -216,22 +217,16 @@ def test_a_person_shows_hair_from_behind_a_face_from_in_front_and_shoes_that_poi
     """Rays along the person's x axis through the head's centre meet hair from behind and skin
     from in front; each shoe reaches three times as far in front of its leg as behind it (FOOT:
     the ankle a quarter of the foot's length from the heel)."""
-    from simgen.facets import shared
-    from simgen.shadows import embree_scene
-
     rng = np.random.default_rng(8)
     for _ in range(10):
         parts = build_actor_parts(sample_recipe(cls, rng))
-        names = np.repeat([p.material.name for p in parts] + [""], [len(p.mesh.faces) for p in parts] + [1])
-        scene = embree_scene(*shared(parts))
         head = next(p.mesh for p in parts if p.material.name == "skin").bounds.mean(axis=0)
         for sgn, first in ((-1.0, "hair"), (1.0, "skin")):  # from behind, from in front
-            origin = head + [sgn * 5.0, 0.0, 0.0]
-            hit = scene.run(origin[None].astype(np.float32), np.float32([[-sgn, 0.0, 0.0]]))
-            assert names[hit[0]] == first
+            assert _seen_along_x(parts, (head + [sgn * 5.0, 0.0, 0.0])[None], sgn)[0] == first
         shoes = [p.mesh.bounds for p in parts if p.material.name == "shoes"]
         shins = [p.mesh for p in parts if p.material.name == "clothes"][:4:2]  # each leg's lower limb
         assert len(shoes) == 2
-        for (lo, hi), shin in zip(sorted(shoes, key=lambda b: b[0][1]), sorted(shins, key=lambda m: m.bounds[0][1])):
+        shins = sorted(shins, key=lambda m: m.bounds[0][1])
+        for (lo, hi), shin in zip(sorted(shoes, key=lambda b: b[0][1]), shins):
             ankle = shin.vertices[shin.vertices[:, 2] <= shin.vertices[:, 2].min() + 1e-9][:, 0].mean()
             assert hi[0] - ankle == pytest.approx(3 * (ankle - lo[0]), rel=1e-6)
