@@ -66,10 +66,12 @@ def main() -> None:
           "occlusion as in training)")
     print("| weights | crops | objects | size MAE (m) | alpha error, median (deg) | alpha within 30 deg |")
     print("|---|---|---|---|---|---|")
-    alpha = {}
+    alpha, crops = {}, {}  # crops: read once per crop size, shared by the files that use it
     for path in args.weights:
         net = load_network(path)
-        samples = collect(ds, ds.ids(args.split), net.cfg.crop, "eval")
+        if net.cfg.crop not in crops:
+            crops[net.cfg.crop] = collect(ds, ds.ids(args.split), net.cfg.crop, "eval")
+        samples = crops[net.cfg.crop]
         for mirror in (False, True):
             per_crop = errors(net, samples, net.cfg.crop, mirror=mirror)
             m = summary(*per_crop)
@@ -87,7 +89,7 @@ def main() -> None:
         grown, shrunk = int((moved > SHIFT_DEG).sum()), int((moved < -SHIFT_DEG).sum())
         p = binomtest(grown, grown + shrunk).pvalue if grown + shrunk else 1.0
         print(f"| {path} | {grown} | {shrunk} | {p:.3f} |")
-    if args.by_view:
+    if args.by_view:  # the objects, their classes and alphas are the same at every crop size
         by_view(samples, alpha)
 
 
