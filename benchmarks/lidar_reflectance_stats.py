@@ -8,6 +8,9 @@ Road points: within 0.1 m of the RANSAC road plane (`lifter.ground`), which also
 incidence (cos = |plane normal . ray|).
 
 Usage: .venv/bin/python benchmarks/lidar_reflectance_stats.py [--root ../shared/kitti_real_dev]
+
+Section 7 fits the reading's compensation range (LidarSpec.compensation_range) to the road's far
+readings through the preset's own reading model.
 """
 
 from __future__ import annotations
@@ -93,6 +96,23 @@ def main() -> None:
           f"(d / {DARK_RANGE:.0f} m)^{GAMMA:.3f}, i.e. a return reads 0 below {p0:.2f} x the "
           "detection threshold power")
 
+    if any(f["laser"].max() >= 0 for f in frames):
+        per_laser(frames)
+    else:
+        print("\n4.-5. per laser: skipped, no frame stores its sweep laser by laser")
+
+    print("\n6. near range (all returns)")
+    for lo, hi in [(0, 2.5), (2.5, 5), (5, 10), (10, 20), (20, 40)]:
+        m = (r >= lo) & (r < hi)
+        nz = v[m][v[m] > 0]
+        print(f"   {lo:4.1f}-{hi:4.1f} m: zero {100 * (v[m] == 0).mean():4.1f} %, at 0.99 "
+              f"{100 * (v[m] >= 0.99).mean():.2f} %, nonzero median {np.median(nz):.2f}")
+
+    far_readings(v, r, road)
+
+
+def per_laser(frames: list[dict]) -> None:
+    """Sections 4 and 5: the lasers' gains, scatter and return counts (frames stored laser by laser)."""
     print("\n4. per laser (road at 4-20 m, nonzero readings)")
     meds = np.full((len(frames), 64), np.nan)
     spreads = []
@@ -127,12 +147,61 @@ def main() -> None:
     print(f"   {low.sum()} lasers: count / median of its 5 elevation neighbours: sd {rel[low].std():.4f}, "
           f"robust {_robust_sd(rel[low]):.4f}, range {rel[low].min():.3f}-{rel[low].max():.3f}")
 
-    print("\n6. near range (all returns)")
-    for lo, hi in [(0, 2.5), (2.5, 5), (5, 10), (10, 20), (20, 40)]:
-        m = (r >= lo) & (r < hi)
-        nz = v[m][v[m] > 0]
-        print(f"   {lo:4.1f}-{hi:4.1f} m: zero {100 * (v[m] == 0).mean():4.1f} %, at 0.99 "
-              f"{100 * (v[m] >= 0.99).mean():.2f} %, nonzero median {np.median(nz):.2f}")
+
+def _model_readings(d: np.ndarray, rho: float, d0: float, same_draw: bool, seed: int = 0,
+                    draws: int = 20) -> np.ndarray:
+    """The hdl64e preset's reading model (simgen.lidar.scan) at ranges `d` on a surface whose
+    compensated reading has median `rho`: per-laser gain and reading scatter as the preset draws
+    them; 0 below the clamp (refl_floor_power x the detection threshold), decided on the reading's
+    own scatter draw (`same_draw`) or on a draw of its own; dimmed beyond `d0`; 0 below refl_floor.
+    Zero-share readings are left out (they do not move the nonzero median)."""
+    from simgen.lidar import preset
+    from simgen.lidar.scan import _scatter_quantiles
+
+    spec = preset("hdl64e")
+    rng = np.random.default_rng(seed)
+    d = np.repeat(d, draws)
+    q = _scatter_quantiles(spec.reading_sigma)
+    gain = np.exp(rng.normal(0.0, spec.gain_sigma, len(d)))
+    e2 = q[rng.integers(0, len(q), len(d))]
+    e1 = e2 if same_draw else q[rng.integers(0, len(q), len(d))]
+    need = 0.1 * (d / DARK_RANGE) ** GAMMA
+    s = gain * e2 * rho * np.minimum(1.0, (d0 / d) ** GAMMA)
+    return np.where((gain * e1 * rho >= spec.refl_floor_power * need) & (s >= spec.refl_floor), s, 0.0)
+
+
+def far_readings(v: np.ndarray, r: np.ndarray, road: np.ndarray) -> None:
+    print("\n7. far readings: nonzero median and zero share against range")
+    bins = [(4, 20), (20, 30), (30, 40), (40, 50), (50, 60), (60, 81)]
+    for name, sel in (("road", road), ("off the road", ~road)):
+        for lo, hi in bins:
+            m = sel & (r >= lo) & (r < hi)
+            nz = v[m][v[m] > 0]
+            print(f"   {name:12s} {lo:2d}-{hi:2d} m: {m.sum():7d} returns, zero {100 * (v[m] == 0).mean():4.1f} %, "
+                  f"nonzero median {np.median(nz):.3f}")
+    ref = float(np.median(v[road & (r >= 4) & (r < 20) & (v > 0)]))
+    far = [(r[road & (r >= lo) & (r < hi)], float(np.median(v[road & (r >= lo) & (r < hi) & (v > 0)])),
+            int(np.count_nonzero(road & (r >= lo) & (r < hi) & (v > 0)))) for lo, hi in bins[1:]]
+
+    def medians(d0: float, same_draw: bool) -> list[float]:
+        out = []
+        for d, _, _ in far:
+            s = _model_readings(d, ref, d0, same_draw)
+            out.append(float(np.median(s[s > 0])) if np.any(s > 0) else np.nan)
+        return out
+
+    print(f"   the road as the preset's reading model reads it (compensated median {ref:.2f}), "
+          "nonzero median per bin 20-30 ... 60-81 m:")
+    print("   KITTI:                                   " + " ".join(f"{o:.3f}" for _, o, _ in far))
+    print("   clamp on the reading's own draw, no dimming: " + " ".join(f"{m:.3f}" for m in medians(1e9, True)))
+    print("   clamp on a draw of its own, no dimming:      " + " ".join(f"{m:.3f}" for m in medians(1e9, False)))
+    grid = np.arange(20.0, 60.01, 0.5)
+    err = [sum(n * (np.log(m) - np.log(o)) ** 2 for (_, o, n), m in zip(far, medians(d0, False)))
+           for d0 in grid]
+    d0 = float(grid[int(np.argmin(err))])
+    print(f"   clamp on a draw of its own, dimmed beyond d0: least squares in log over the bins, "
+          f"weighted by their nonzero counts: d0 = {d0:.1f} m")
+    print(f"   with d0 = {d0:.1f} m:                    " + " ".join(f"{m:.3f}" for m in medians(d0, False)))
 
 
 if __name__ == "__main__":

@@ -308,14 +308,17 @@ def detect_rays(prim, tfar, ng, d_w, origins, inv_ng, loss, refl, tri_refl, tri_
 
 
 @numba.njit(cache=True, nogil=True)
-def read_returns(idx, r, rho, need, v, scatter, ext, noise, noise_sigma, bias, gain, floor_power,
-                 floor0, per_step, k_max, dirs4, source, ring_t, az_t, time_t):
+def read_returns(idx, r, rho, need, v, clamp_v, scatter, ext, noise, noise_sigma, bias, gain,
+                 floor_power, need0, floor0, per_step, k_max, dirs4, source, ring_t, az_t, time_t):
     """The output rows (scan.py, steps 5 and 7), in float32. Per return: the range takes its
     laser's `bias` and its standard normal `noise` * `noise_sigma` (zero-length: neither); the
-    reading is 0 where v < 0 (the laser's zero share), else s = gain * scatter[v] * rho_eff
-    (* `ext`, two-way extinction; zero-length: clear air), `scatter` the scatter's quantiles at
-    len(scatter) equal steps of v; s reads 0 below max(floor0, floor_power * need), else
-    k / per_step, k = round(s * per_step) <= k_max. A return lies at its ray's `source` (N, 3;
+    reading is 0 where v < 0 (the laser's zero share), and where the echo, gain * scatter[clamp_v]
+    * rho_eff (* `ext`, two-way extinction; zero-length: clear air), is below floor_power * need
+    (the intensity's clamp, decided on a scatter draw of its own); else the reading is s = gain *
+    scatter[v] * rho_eff (* ext), dimmed by need0 / need where that is below 1 (no range
+    compensation beyond the range whose threshold is need0); `scatter` holds the scatter's
+    quantiles at len(scatter) equal steps of a uniform. s reads 0 below floor0, else k /
+    per_step, k = round(s * per_step) <= k_max. A return lies at its ray's `source` (N, 3;
     zero-length: the origin) + range x direction."""
     n = idx.shape[0]
     points = np.empty((n, 4), np.float32)
@@ -342,10 +345,14 @@ def read_returns(idx, r, rho, need, v, scatter, ext, noise, noise_sigma, bias, g
         tm[k] = time_t[i]
         value = np.float32(0.0)
         if v[k] >= 0:
-            s = gain[lz] * scatter[min(int(v[k] * n_q), n_q - 1)] * rho[k]
+            echo = gain[lz] * rho[k]
             if has_ext:
-                s *= ext[k]
-            if s >= max(floor0, floor_power * need[k]):
-                value = min(np.rint(s * per_step), k_max) / per_step
+                echo *= ext[k]
+            if echo * scatter[min(int(clamp_v[k] * n_q), n_q - 1)] >= floor_power * need[k]:
+                s = echo * scatter[min(int(v[k] * n_q), n_q - 1)]
+                if need[k] > need0:
+                    s *= need0 / need[k]
+                if s >= floor0:
+                    value = min(np.rint(s * per_step), k_max) / per_step
         points[k, 3] = value
     return points, ring, az, tm

@@ -22,16 +22,19 @@ Per ray, in order:
 8. the reported reflectance.
 
 Reported reflectance (constants and the KITTI measurements behind them: LidarSpec). The
-HDL-64E reports a range-compensated intensity: a surface reads about its rho_eff wherever it
-is (KITTI's road reads the same median from 4 to 25 m). A return reads
-    s = g_laser * e * rho_eff * exp(-2 beta d),
+HDL-64E reports a range-compensated intensity out to `compensation_range` (36 m): a surface reads
+about its rho_eff there (KITTI's road reads the same median from 4 to 40 m). A return reads
+    s = g_laser * e * rho_eff * exp(-2 beta d) * min(1, (compensation_range / d) ** gamma),
 g_laser the laser's gain (log-normal, drawn once per sensor unit: the 64 lasers differ in
-calibrated intensity) and e the per-return scatter (log-logistic). s reads 0 below
-    max(refl_floor, refl_floor_power * 0.1 * (d / 50 m) ** gamma):
-the fixed floor of the lowest readings, and the echo power under which the unit's intensity
-clamps to its minimum (so far returns read 0 or normally, seldom dim: half of KITTI's road reads
-0 at 37 m, 74 % at 40-60 m). The rest is rounded to refl_step (0.01) and capped at refl_max
-(0.99), as KITTI writes it. Near range: no over-read (KITTI's returns within 5 m read 0.99 less
+calibrated intensity), e the per-return scatter (log-logistic), and the last factor the echo's
+fall beyond the compensated range (KITTI's far returns read dimmer: the road's nonzero median is
+0.17 at 40-50 m against 0.24 near). A return reads 0 where its echo, g_laser * e' * rho_eff *
+exp(-2 beta d) with e' a scatter draw of its own, is below refl_floor_power * 0.1 * (d / 50 m)
+** gamma: the echo power under which the unit's intensity clamps to its minimum (half of
+KITTI's road reads 0 at 37 m, 74 % at 40-60 m), decided apart from the reading's scatter, since
+the road's nonzero median does not rise as its zeros do. s also reads 0 below refl_floor, the
+fixed floor of the lowest readings. The rest is rounded to refl_step (0.01) and capped at
+refl_max (0.99), as KITTI writes it. Near range: no over-read (KITTI's returns within 5 m read 0.99 less
 often than farther ones and have the same nonzero median); KITTI's many zeros within 2.5 m
 (88 %) are not modelled (too few returns there, 0.13 %, to tell the sensor from what it sees).
 """
@@ -203,18 +206,21 @@ def _read(spec: LidarSpec, rng: np.random.Generator, beta: float, idx: np.ndarra
           rho: np.ndarray, need: np.ndarray, v: np.ndarray, rays: RayTable):
     """Steps 5 (range noise) and 8 (reflectance) of the module docstring (kernels.read_returns):
     the (N, 4) points and each return's ring, azimuth and time. Draws one normal per return for
-    its range noise (after the uniforms: part of the seed's meaning). `v` (kernels.detect_rays)
-    is -1 where the laser reads 0, else a uniform that picks the reading's scatter from
-    _scatter_quantiles."""
+    its range noise (after the uniforms: part of the seed's meaning), then, with a reading
+    scatter, one uniform per return for the clamp's own scatter draw (after the normals, so the
+    points' positions do not depend on it). `v` (kernels.detect_rays) is -1 where the laser reads
+    0, else a uniform that picks the reading's scatter from _scatter_quantiles."""
     f32 = np.float32
     ext = np.exp(f32(-2.0 * beta) * r) if beta > 0 else np.zeros(0, f32)
     noisy = spec.noise_sigma > 0 or spec.bias_sigma > 0
     noise = rng.standard_normal(len(idx), dtype=f32) if noisy else np.zeros(0, f32)
+    clamp_v = rng.random(len(idx), dtype=f32) if spec.reading_sigma > 0 else v
     lasers = _laser_tables(spec)
     source = rays.source if rays.source is not None else np.zeros((0, 3), f32)
-    return read_returns(idx, r, rho, need, v, _scatter_quantiles(spec.reading_sigma), ext, noise,
-                        f32(spec.noise_sigma), lasers["bias"], lasers["gain"],
-                        f32(spec.refl_floor_power), f32(spec.refl_floor), f32(1.0 / spec.refl_step),
+    need0 = f32(spec.threshold(np.float64(spec.compensation_range)))
+    return read_returns(idx, r, rho, need, v, clamp_v, _scatter_quantiles(spec.reading_sigma), ext,
+                        noise, f32(spec.noise_sigma), lasers["bias"], lasers["gain"],
+                        f32(spec.refl_floor_power), need0, f32(spec.refl_floor), f32(1.0 / spec.refl_step),
                         f32(round(spec.refl_max / spec.refl_step)), rays.dirs4, source, rays.ring,
                         rays.azimuth, rays.time32)
 

@@ -150,6 +150,8 @@ STATS: tuple[Stat, ...] = (
     Stat("lidar.reflectance_mean", "mean reflectance", "", med("lidar.reflectance_mean")),
     Stat("lidar.reflectance_zero_share", "share of reflectance exactly 0", "",
          med("lidar.reflectance_zero")),
+    Stat("lidar.far_reflectance_nonzero_median", f"median nonzero reflectance of the returns beyond "
+         f"{FAR_M[0]:.0f} m", "", med("lidar.far_reflectance_nonzero")),
     Stat("lidar.ground_share", f"share of ground returns (within {GROUND_M} m of the road plane)",
          "", med("lidar.ground_share")),
     *(Stat(f"lidar.near_ground_share_{side}", f"share of ground returns within {NEAR_M:.0f} m, {side} "

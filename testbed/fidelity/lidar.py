@@ -47,7 +47,7 @@ def lidar_stats(acc: Acc, scan: np.ndarray, calib: Calibration,
     height = height_above(rect, fit_ground_plane(rect))
     ground = np.abs(height) < GROUND_M
     acc.put("lidar.ground_share", np.count_nonzero(ground) / len(pts))
-    _far(acc, pts, r > FAR_M[0], height)
+    _far(acc, pts, r > FAR_M[0], height, refl)
     # where the ground share comes from: what stands beside the sensor on each side (LiDAR y left)
     near = bev < NEAR_M
     for side, m in (("left", near & (pts[:, 1] > 0)), ("right", near & (pts[:, 1] < 0))):
@@ -57,17 +57,22 @@ def lidar_stats(acc: Acc, scan: np.ndarray, calib: Calibration,
         _car_points(acc, rect, [o for o in labels if o.type == "Car"])
 
 
-def _far(acc: Acc, pts: np.ndarray, far: np.ndarray, height: np.ndarray) -> None:
+def _far(acc: Acc, pts: np.ndarray, far: np.ndarray, height: np.ndarray, refl: np.ndarray) -> None:
     """Where the far returns lie: their share of the sweep ahead, beside and behind the sensor
     (SECTOR_DEG), and their median height above the fitted road plane. Alike shares in every
     sector and alike heights say that a surplus of far returns is the view open more often,
-    not one kind of surface."""
+    not one kind of surface. And how they read: the median of their nonzero reflectance (a
+    sensor that compensates range fully reads far surfaces as near ones; KITTI's read dimmer)."""
     bearing = np.degrees(np.abs(np.arctan2(pts[:, 1], pts[:, 0])))  # 0 ahead, 180 behind
     ahead, behind = bearing < SECTOR_DEG, bearing >= 180.0 - SECTOR_DEG
     for name, m in (("ahead", ahead), ("beside", ~ahead & ~behind), ("behind", behind)):
         acc.put(f"lidar.beyond_40m_{name}", np.count_nonzero(far & m) / len(pts))
     if far.any():
         acc.put("lidar.far_height_m", np.median(height[far]))
+    lit = refl[far]
+    lit = lit[lit > 0]
+    if len(lit):
+        acc.put("lidar.far_reflectance_nonzero", np.median(lit))
 
 
 def _rings(acc: Acc, pts: np.ndarray, bev: np.ndarray) -> None:

@@ -84,6 +84,7 @@ def test_report_numbers_match_a_hand_computation_on_one_real_frame(real_root, tm
         "lidar.beyond_40m_beside_share": np.mean(far & (bearing >= 30) & (bearing < 150)),
         "lidar.beyond_40m_behind_share": np.mean(far & (bearing >= 150)),
         "lidar.far_height_m": np.median(height[far]),
+        "lidar.far_reflectance_nonzero_median": np.median(scan[far & (scan[:, 3] > 0), 3]),
         "lidar.range_p50_m": np.median(r),
         "lidar.reflectance_zero_share": np.mean(scan[:, 3] == 0),
         "lidar.reflectance_mean": scan[:, 3].astype(np.float64).mean(),

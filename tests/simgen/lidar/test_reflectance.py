@@ -45,15 +45,18 @@ def _r(s) -> np.ndarray:
     return np.linalg.norm(s.points[:, :3].astype(np.float64), axis=1)
 
 
-def _floor(d: np.ndarray) -> np.ndarray:
-    """max(refl_floor, refl_floor_power * 0.1 * (d / 50) ** 2.375) for the hdl64e defaults."""
-    return np.maximum(0.025, 4.89 * 0.1 * (d / 50.0) ** G)
+def _clamp(d: np.ndarray) -> np.ndarray:
+    """refl_floor_power * 0.1 * (d / 50) ** 2.375 for the hdl64e defaults: an echo below it reads 0."""
+    return 4.89 * 0.1 * (d / 50.0) ** G
 
 
 def _expected(s_true: np.ndarray, d: np.ndarray) -> np.ndarray:
-    """What the sensor writes for a true reading s at range d: 0 below the floor, else s rounded
-    to 0.01, at most 0.99."""
-    return np.where(s_true >= _floor(d), np.minimum(np.round(s_true * 100), 99) / 100, 0.0)
+    """What the sensor writes for a true reading s at range d: 0 below the clamp, dimmed by
+    (36 / d) ** 2.375 beyond the compensation range (36 m), 0 below 0.025, else rounded to 0.01,
+    at most 0.99."""
+    s = s_true * np.minimum(1.0, (36.0 / d) ** G)
+    keep = (s_true >= _clamp(d)) & (s >= 0.025)
+    return np.where(keep, np.minimum(np.round(s * 100), 99) / 100, 0.0)
 
 
 def _agree(got: np.ndarray, want: np.ndarray) -> None:
@@ -77,14 +80,17 @@ def test_lambertian_target_reads_reflectivity_times_cos():
 
 
 def test_rough_ground_material_reads_flat_in_incidence():
-    # incidence_exponent 0 (Lommel-Seeliger): a 0.24 wall reads 0.24 at every angle until the
-    # range floor passes it: 0.489 * (d / 50) ** 2.375 = 0.24 at d = 50 * (0.24 / 0.489) ** (1 /
-    # 2.375) = 37.0 m (KITTI's road reads 0 half the time there)
+    # incidence_exponent 0 (Lommel-Seeliger): a 0.24 wall reads 0.24 at every angle out to the
+    # compensation range (36 m), a little less beyond, until the clamp passes it: 0.489 * (d / 50)
+    # ** 2.375 = 0.24 at d = 50 * (0.24 / 0.489) ** (1 / 2.375) = 37.0 m (KITTI's road reads 0
+    # half the time there)
     s = scan(_world(_wall(20.0, _mat(0.24, k=0.0))), _spec(), 0)
     r, v = _r(s), s.points[:, 3]
     d_star = 50.0 * (0.24 / 0.489) ** (1 / G)
     assert d_star == pytest.approx(37.0, abs=0.1)
-    assert np.all(v[r < d_star - 0.3] == np.float32(0.24))
+    assert np.all(v[r < 36.0] == np.float32(0.24))
+    _agree(v[r >= 36.0], _expected(np.full((r >= 36.0).sum(), 0.24), r[r >= 36.0]))
+    assert np.all(v[(r > 36.5) & (r < d_star - 0.3)] == np.float32(0.23))  # 0.24 * (36 / d) ** 2.375
     assert np.all(v[r > d_star + 0.3] == 0.0)
     assert (r > d_star + 0.3).sum() > 100  # detected there (0.24 >= 0.1 * (d / 50) ** 2.375) but read 0
 
@@ -109,6 +115,31 @@ def test_low_readings_floor_to_zero_and_bright_ones_saturate():
     # no near-range over-read: a 0.2 wall at 2.5 m reads 0.20
     s = scan(_world(_wall(2.5, _mat(0.2))), spec, 0)
     assert np.all(s.points[_r(s) < 2.502, 3] == np.float32(0.2))
+
+
+def test_far_readings_dim_beyond_the_compensation_range():
+    # a 0.9 wall (flat in incidence) clears the clamp at 50 m (0.489) and 60 m (0.754) but reads
+    # 0.9 * (36 / 50) ** 2.375 = 0.41 and 0.9 * (36 / 60) ** 2.375 = 0.27 straight ahead
+    for d, want in ((50.0, 0.41), (60.0, 0.27)):
+        s = scan(_world(_wall(d, _mat(0.9, k=0.0))), _spec(), 0)
+        ahead = _r(s) < d + 0.05
+        assert ahead.sum() > 10 and np.all(s.points[ahead, 3] == np.float32(want))
+    assert 0.9 * (36 / 50) ** G == pytest.approx(0.4125, abs=1e-4)
+    assert 0.9 * (36 / 60) ** G == pytest.approx(0.2675, abs=1e-4)
+
+
+def test_the_clamp_draws_its_own_scatter():
+    # a 0.2 wall at 34.3 m, where the clamp is 0.2 (0.489 * (34.3 / 50) ** 2.375), inside the
+    # compensation range: half its returns read 0, and the rest read about 0.20, not the upper half
+    # of the scatter (0.2 * 3 ** (0.31 / (1.4826 ln 3)) = 0.247, had the clamp used the reading's draw)
+    assert 0.489 * (34.3 / 50) ** G == pytest.approx(0.2, abs=0.001)
+    s = scan(_world(_wall(34.3, _mat(0.2, k=0.0))), _spec(reading_sigma=0.31), 0)
+    near = _r(s) < 34.5
+    v = s.points[near, 3]
+    n = near.sum()
+    assert n > 300
+    assert (v == 0).mean() == pytest.approx(0.5, abs=0.03 + 3 * np.sqrt(0.25 / n))
+    assert np.median(v[v > 0]) == pytest.approx(0.2, abs=0.012)
 
 
 def test_per_laser_gain_is_fixed_per_unit():
