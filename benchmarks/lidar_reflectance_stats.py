@@ -26,6 +26,8 @@ from lifter.ground import fit_ground_plane, height_above
 
 ROAD_M = 0.1  # a return this close to the road plane is road
 NEAR_ROAD = (4.0, 20.0)  # road range where the reading is compensated (flat in range)
+# probabilities at which section 4 prints the shape of the readings' scatter, denser in the tails
+SHAPE_P = (0.001, 0.005, 0.01, 0.05, 0.1, 0.25, 0.5, 0.75, 0.9, 0.95, 0.99, 0.995, 0.999)
 DARK_RANGE, GAMMA = 50.0, np.log(0.8 / 0.1) / np.log(120.0 / 50.0)  # hdl64e power law
 
 
@@ -115,7 +117,8 @@ def per_laser(frames: list[dict]) -> None:
     """Sections 4 and 5: the lasers' gains, scatter and return counts (frames stored laser by laser)."""
     print("\n4. per laser (road at 4-20 m, nonzero readings)")
     meds = np.full((len(frames), 64), np.nan)
-    spreads = []
+    spreads, devs = [], []
+    jitter = np.random.default_rng(0)
     counts = np.full((len(frames), 64), np.nan)
     els = np.full((len(frames), 64), np.nan)
     for fi, f in enumerate(frames):
@@ -129,14 +132,26 @@ def per_laser(frames: list[dict]) -> None:
             if m.sum() >= 50:
                 meds[fi, k] = np.median(f["v"][m])
                 spreads.append(_robust_sd(np.log(f["v"][m])))
+                # spread evenly over its 0.01 step, so the quantiles do not step with KITTI's
+                v = f["v"][m].astype(np.float64) + jitter.uniform(-0.005, 0.005, m.sum())
+                devs.append(np.log(v) - np.median(np.log(v)))
     lm = np.nanmedian(meds, axis=0)
     lm = np.log(lm[np.isfinite(lm)] / np.median(lm[np.isfinite(lm)]))
     print(f"   {len(lm)} lasers see enough road: sd of log(laser median / all-laser median) = "
           f"{lm.std():.3f} (robust {_robust_sd(lm):.3f}); range x{np.exp(lm.min()):.2f} to "
           f"x{np.exp(lm.max()):.2f}")
+    lo, mid, hi = np.percentile(lm, [15.87, 50, 84.13])
+    print(f"   one-sided spreads of the lasers' log medians (50th less 16th, 84th less 50th percentile): "
+          f"below {mid - lo:.3f}, above {hi - mid:.3f}")
     print(f"   within one laser and frame, robust sd of log(reading): median {np.median(spreads):.3f} "
           f"(quartiles {np.percentile(spreads, 25):.3f}, {np.percentile(spreads, 75):.3f}; "
           f"{len(spreads)} laser-frames)")
+    dev = np.concatenate(devs)
+    sd = _robust_sd(dev)
+    print(f"   pooled deviations of log(reading) from their laser-frame's median ({len(dev)} returns; "
+          f"readings spread over their 0.01 step): robust sd {sd:.3f}; in units of it, quantiles at "
+          + ", ".join(f"{p:g}" for p in SHAPE_P) + " (the model's scatter is symmetric in log):")
+    print("   " + ", ".join(f"{q:.2f}" for q in np.percentile(dev, 100 * np.asarray(SHAPE_P)) / sd))
 
     print("\n5. per-laser return count (lower block, -10 to -20 deg: road or an obstacle at every azimuth)")
     order = np.argsort(-np.nanmedian(els, axis=0))
@@ -179,19 +194,24 @@ def far_readings(v: np.ndarray, r: np.ndarray, road: np.ndarray) -> None:
             nz = v[m][v[m] > 0]
             print(f"   {name:12s} {lo:2d}-{hi:2d} m: {m.sum():7d} returns, zero {100 * (v[m] == 0).mean():4.1f} %, "
                   f"nonzero median {np.median(nz):.3f}")
-    ref = float(np.median(v[road & (r >= 4) & (r < 20) & (v > 0)]))
+    near = road & (r >= 4) & (r < 20)
+    ref = float(np.median(v[near & (v > 0)]))
+    # the surface whose model readings at 4-20 m have KITTI's nonzero median there (the gain and
+    # scatter, both skewed, put the median of their product a little below 1)
+    unit = _model_readings(r[near][::50], 1.0, 1e9, False)
+    rho = ref / float(np.median(unit[unit > 0]))
     far = [(r[road & (r >= lo) & (r < hi)], float(np.median(v[road & (r >= lo) & (r < hi) & (v > 0)])),
             int(np.count_nonzero(road & (r >= lo) & (r < hi) & (v > 0)))) for lo, hi in bins[1:]]
 
     def medians(d0: float, same_draw: bool) -> list[float]:
         out = []
         for d, _, _ in far:
-            s = _model_readings(d, ref, d0, same_draw)
+            s = _model_readings(d, rho, d0, same_draw)
             out.append(float(np.median(s[s > 0])) if np.any(s > 0) else np.nan)
         return out
 
-    print(f"   the road as the preset's reading model reads it (compensated median {ref:.2f}), "
-          "nonzero median per bin 20-30 ... 60-81 m:")
+    print(f"   the road as the preset's reading model reads it (reflectivity {rho:.3f}: its nonzero median at "
+          f"4-20 m is KITTI's {ref:.2f}), nonzero median per bin 20-30 ... 60-81 m:")
     print("   KITTI:                                   " + " ".join(f"{o:.3f}" for _, o, _ in far))
     print("   clamp on the reading's own draw, no dimming: " + " ".join(f"{m:.3f}" for m in medians(1e9, True)))
     print("   clamp on a draw of its own, no dimming:      " + " ".join(f"{m:.3f}" for m in medians(1e9, False)))
