@@ -115,15 +115,16 @@ def ring_median(key: str, pick: Callable[[np.ndarray], float]) -> RingMedian:
     return RingMedian(key, pick)
 
 
-def car_points(lo: float, hi: float, visible: bool = False) -> Median:
-    """Median returns inside the Cars at lo-hi m; `visible`: only those labelled occlusion 0."""
+def car_points(lo: float, hi: float, visible: bool = False, key: str = "lidar.car_points") -> Median:
+    """Median returns inside the Cars at lo-hi m (or another per-Car value, `key`); `visible`:
+    only those labelled occlusion 0."""
     def keep(d: DatasetStats) -> np.ndarray:
         dist = d.get("lidar.car_distance_m")
         keep = (dist >= lo) & (dist < hi)
         if visible:
             keep &= d.get("lidar.car_occluded") == 0
         return keep
-    return Median("lidar.car_points", keep)
+    return Median(key, keep)
 
 
 STATS: tuple[Stat, ...] = (
@@ -163,6 +164,8 @@ STATS: tuple[Stat, ...] = (
          car_points(20, 40, visible=True)),
     Stat("lidar.visible_car_points_40_80m", "points on a fully visible Car at 40-80 m", "",
          car_points(40, 80, visible=True)),
+    Stat("lidar.car_zero_share_0_20m", "share of the points on a Car at 0-20 m that read 0", "",
+         car_points(0, 20, key="lidar.car_zero_share")),
     Stat("images.grey_mean", "mean grey level", "", med("images.grey_mean")),
     Stat("images.grey_sd", "grey standard deviation (contrast)", "", med("images.grey_sd")),
     Stat("images.saturation_mean", "mean HSV saturation", "", med("images.saturation_mean")),

@@ -54,7 +54,7 @@ def lidar_stats(acc: Acc, scan: np.ndarray, calib: Calibration,
         if m.any():
             acc.put(f"lidar.near_ground_{side}", np.count_nonzero(ground[m]) / np.count_nonzero(m))
     if labels is not None:
-        _car_points(acc, rect, [o for o in labels if o.type == "Car"])
+        _car_points(acc, rect, refl, [o for o in labels if o.type == "Car"])
 
 
 def _far(acc: Acc, pts: np.ndarray, far: np.ndarray, height: np.ndarray, refl: np.ndarray) -> None:
@@ -87,18 +87,21 @@ def _rings(acc: Acc, pts: np.ndarray, bev: np.ndarray) -> None:
     acc.put("lidar.ring_by_azimuth", method == "azimuth-wrap")
 
 
-def _car_points(acc: Acc, rect: np.ndarray, cars: list[Object3D]) -> None:
-    """Returns inside each Car's 3D box, against its ground (x-z) distance, and its occlusion
-    level (the mix of hidden cars differs between label sets: the fully visible ones compare the
-    sensors)."""
+def _car_points(acc: Acc, rect: np.ndarray, refl: np.ndarray, cars: list[Object3D]) -> None:
+    """Returns inside each Car's 3D box and the share of them that read 0 (NaN for none),
+    against its ground (x-z) distance, and its occlusion level (the mix of hidden cars differs
+    between label sets: the fully visible ones compare the sensors)."""
     x, z = np.ascontiguousarray(rect[:, 0]), np.ascontiguousarray(rect[:, 2])
-    counts = []
+    counts, zeros = [], []
     for o in cars:
         b = o.box7
         reach = np.hypot(b[4], b[5]) / 2  # a cheap square around the box first
         near = _in_square(x, z, b[0], b[2], reach)
-        counts.append(np.count_nonzero(points_in_boxes(rect[near], b)[0]))
+        inside = refl[near][points_in_boxes(rect[near], b)[0]]
+        counts.append(len(inside))
+        zeros.append(np.count_nonzero(inside == 0) / len(inside) if len(inside) else np.nan)
     acc.put("lidar.car_points", counts)
+    acc.put("lidar.car_zero_share", zeros)
     acc.put("lidar.car_distance_m", [np.hypot(o.location[0], o.location[2]) for o in cars])
     acc.put("lidar.car_occluded", [o.occluded for o in cars])
 

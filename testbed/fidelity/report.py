@@ -16,7 +16,7 @@ from .bootstrap import LEVEL, SEED
 from .compare import Comparison, Row
 from .images import CANNY, NEAR_CAR_PX
 from .labels import CLASSES, KITTI_TRAINING_FRAMES, KITTI_TRAINING_LABELS
-from .lidar import GROUND_M, NEAR_M
+from .lidar import FAR_M, GROUND_M, NEAR_M
 from .stats import DatasetStats
 
 GROUPS = (("lidar", "LiDAR", "velodyne/"), ("images", "Images", "image_2/"),
@@ -34,7 +34,9 @@ NOTES = f"""\
   (`lifter.ground.fit_ground_plane`, rectified camera frame). Near the sensor, the same share
   among the returns within {NEAR_M:.0f} m (bird's-eye), left (LiDAR y > 0) and right of it: what
   stands beside the car (parked or passing cars, walls, hedges) takes those returns from the road.
-- Points on a Car: .bin points inside the label's 3D box (velo -> rect with the frame's calib).
+- Points on a Car: .bin points inside the label's 3D box (velo -> rect with the frame's calib),
+  and the share of them whose reflectance is 0. Far returns' reading: the median of the nonzero
+  reflectance of the returns beyond {FAR_M[0]:.0f} m.
 - Images are read with cv2; grey is cv2's BGR2GRAY; dI/dx is the forward difference along x;
   gradient magnitude is sqrt(dx^2 + dy^2) of forward differences; edges are Canny with thresholds
   {CANNY[0]} and {CANNY[1]}.

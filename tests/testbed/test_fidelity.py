@@ -233,6 +233,36 @@ def test_points_on_cars_by_distance_and_on_the_fully_visible_ones():
     assert car_points(40, 80)(d) == 5.5 and car_points(40, 80, visible=True)(d) == 9.0
 
 
+def test_points_on_each_car_and_their_zero_readings_by_hand(real_root):
+    """Frame 001206's Cars: the returns inside each label box, found here with the box's own
+    frame written out (x along its length, z across, y down to its bottom face), and how many of
+    them read 0."""
+    from testbed.fidelity.lidar import lidar_stats
+
+    t = real_root / "training"
+    scan = np.fromfile(t / "velodyne/001206.bin", "<f4").reshape(-1, 4)
+    calib = read_calib(t / "calib/001206.txt")
+    labels = read_label(t / "label_2/001206.txt")
+    acc = Acc(frames=["001206"])
+    lidar_stats(acc, scan, calib, labels)
+    rect = calib.lidar_to_rect(scan[:, :3].astype(np.float64))
+    counts, zeros = [], []
+    for o in (o for o in labels if o.type == "Car"):
+        d = rect - o.location
+        c, s = np.cos(o.rotation_y), np.sin(o.rotation_y)
+        along, across = c * d[:, 0] - s * d[:, 2], s * d[:, 0] + c * d[:, 2]
+        inside = ((np.abs(along) <= o.l / 2) & (np.abs(across) <= o.w / 2) & (d[:, 1] <= 0)
+                  & (d[:, 1] >= -o.h))
+        counts.append(inside.sum())
+        zeros.append(np.mean(scan[inside, 3] == 0) if inside.any() else np.nan)
+    got_counts = np.concatenate(acc.values["lidar.car_points"])
+    got_zeros = np.concatenate(acc.values["lidar.car_zero_share"])
+    assert len(counts) >= 3 and np.abs(got_counts - counts).max() <= 2  # points on a face may go either way
+    ok = np.isfinite(zeros)
+    assert np.allclose(got_zeros[ok], np.array(zeros)[ok], atol=0.01)
+    assert np.array_equal(np.isfinite(got_zeros), ok)
+
+
 def test_the_look_of_a_near_whole_car_by_hand(real_root):
     """Frame 001206: one Car is near (175 px tall), untruncated and fully visible; the others are
     truncated, occluded, Vans or a Truck. Its box's pixels, by hand: columns 551-736, rows 186-361."""
