@@ -7,7 +7,8 @@ as a human annotator's or a detector's box would be.
 
 A generated label's 2D box is its 3D box's projection to a thousandth of a pixel; KITTI's lie
 0.84 px from it (median of the largest side gap; the fidelity report's `labels.proj_gap_px` on
-the real dev frames), the largest of four Gaussian sides of sd about 0.6 px. The noisy boxes go
+the real dev frames), as the largest of four Gaussian sides of sd 0.6 px would be (the median of
+the largest of four |N(0, s)| is 1.41 s: (2 Phi(x / s) - 1) ** 4 = 1/2). The noisy boxes go
 to the lifter as a detection folder (score 1, class and everything else as labelled), each
 side drawn once per sigma with a fixed seed and clipped to the image.
 """
