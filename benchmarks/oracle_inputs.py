@@ -1,16 +1,19 @@
-"""What exact 2D boxes give a lifting method: Car AP|R40 (3D, moderate, IoU 0.7 and 0.5) from the
-label_2 boxes as they are (oracle) and with each side moved by Gaussian noise of `sigma` pixels,
-as a human annotator's or a detector's box would be.
+"""What a generated dataset's exact inputs give a lifting method, as a real system lacks them: Car
+AP|R40 (3D, moderate, IoU 0.7 and 0.5) from the label_2 boxes as they are (oracle) and with each
+side moved by Gaussian noise of `sigma` pixels, as a human annotator's or a detector's box would
+be; and with the dataset's exact road plane (planes/) or without it (the road fitted to the scan,
+as on KITTI's frames).
 
-    .venv/bin/python benchmarks/box_noise.py --data data/lifter/urban_val --split trainval \\
-        --methods mono,fit --sigmas 0,0.5,1,2 --out runs/box_noise
+    .venv/bin/python benchmarks/oracle_inputs.py --data data/lifter/urban_val --split trainval \\
+        --methods mono,fit --sigmas 0,0.6,1,2 --roads planes,scan --out runs/oracle_inputs
 
 A generated label's 2D box is its 3D box's projection to a thousandth of a pixel; KITTI's lie
 0.84 px from it (median of the largest side gap; the fidelity report's `labels.proj_gap_px` on
 the real dev frames), as the largest of four Gaussian sides of sd 0.6 px would be (the median of
 the largest of four |N(0, s)| is 1.41 s: (2 Phi(x / s) - 1) ** 4 = 1/2). The noisy boxes go
 to the lifter as a detection folder (score 1, class and everything else as labelled), each
-side drawn once per sigma with a fixed seed and clipped to the image.
+side drawn once per sigma with a fixed seed and clipped to the image. Without planes/, the
+lifter reads the dataset through a folder of links to everything else.
 """
 
 from __future__ import annotations
@@ -47,29 +50,42 @@ def noisy_boxes(root: Path, ids: list[str], sigma: float, out: Path) -> Path:
     return out
 
 
+def without_planes(root: Path, out: Path) -> Path:
+    """`root` seen without its planes/: a folder of links to its ImageSets and other folders."""
+    (out / "training").mkdir(parents=True, exist_ok=True)
+    for src in [root / "ImageSets", *(root / "training").iterdir()]:
+        dst = out / src.relative_to(root)
+        if src.name != "planes" and not dst.exists():
+            dst.symlink_to(src.resolve(), target_is_directory=True)
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", type=Path, required=True)
     ap.add_argument("--split", default="trainval")
     ap.add_argument("--methods", default="mono,fit")
     ap.add_argument("--sigmas", default="0,0.5,1,2")
+    ap.add_argument("--roads", default="planes", help="planes (the dataset's planes/), scan (without them)")
     ap.add_argument("--out", type=Path, required=True)
     args = ap.parse_args()
     ids = KittiDataset(args.data).ids(args.split)
+    roads = {"planes": args.data, "scan": without_planes(args.data, args.out / "no_planes")}
     gt_all = load_annotations(args.data / "training" / "label_2")
     gt = {i: gt_all[i] for i in ids}
     print(f"{args.data}, split {args.split} ({len(ids)} frames): Car 3D AP|R40 moderate @0.7 / @0.5")
-    print("| side noise sd (px) | " + " | ".join(args.methods.split(",")) + " |")
-    print("|---" * (1 + len(args.methods.split(","))) + "|")
-    for sigma in (float(s) for s in args.sigmas.split(",")):
-        boxes = noisy_boxes(args.data, ids, sigma, args.out / f"boxes_{sigma:g}")
-        cells = []
-        for method in args.methods.split(","):
-            pred = args.out / f"{method}_{sigma:g}"
-            lift_dataset(args.data, boxes, method, pred, args.split)
-            r = evaluate(gt, load_annotations(pred, ids=ids), classes=("Car",), metrics=("3d",))
-            cells.append(f"{r.ap['Car']['3d']['R40'][1]:.1f} / {r.ap_loose['Car']['3d']['R40'][1]:.1f}")
-        print(f"| {sigma:g} | " + " | ".join(cells) + " |", flush=True)
+    print("| road | side noise sd (px) | " + " | ".join(args.methods.split(",")) + " |")
+    print("|---|---" + "|---" * len(args.methods.split(",")) + "|")
+    for road in args.roads.split(","):
+        for sigma in (float(s) for s in args.sigmas.split(",")):
+            boxes = noisy_boxes(args.data, ids, sigma, args.out / f"boxes_{sigma:g}")
+            cells = []
+            for method in args.methods.split(","):
+                pred = args.out / f"{road}_{method}_{sigma:g}"
+                lift_dataset(roads[road], boxes, method, pred, args.split)
+                r = evaluate(gt, load_annotations(pred, ids=ids), classes=("Car",), metrics=("3d",))
+                cells.append(f"{r.ap['Car']['3d']['R40'][1]:.1f} / {r.ap_loose['Car']['3d']['R40'][1]:.1f}")
+            print(f"| {road} | {sigma:g} | " + " | ".join(cells) + " |", flush=True)
 
 
 if __name__ == "__main__":
