@@ -180,8 +180,8 @@ def _model_readings(d: np.ndarray, rho: float, d0: float, same_draw: bool, seed:
     gain = np.exp(rng.normal(0.0, spec.gain_sigma, len(d)))
     e2 = q[rng.integers(0, len(q), len(d))]
     e1 = e2 if same_draw else q[rng.integers(0, len(q), len(d))]
-    need = 0.1 * (d / DARK_RANGE) ** GAMMA
-    s = gain * e2 * rho * np.minimum(1.0, (d0 / d) ** GAMMA)
+    need = spec.threshold(d)
+    s = gain * e2 * rho * np.minimum(1.0, (d0 / d) ** spec.range_exponent)
     return np.where((gain * e1 * rho >= spec.refl_floor_power * need) & (s >= spec.refl_floor), s, 0.0)
 
 
@@ -196,8 +196,7 @@ def far_readings(v: np.ndarray, r: np.ndarray, road: np.ndarray) -> None:
                   f"nonzero median {np.median(nz):.3f}")
     near = road & (r >= 4) & (r < 20)
     ref = float(np.median(v[near & (v > 0)]))
-    # the surface whose model readings at 4-20 m have KITTI's nonzero median there (the gain and
-    # scatter, both skewed, put the median of their product a little below 1)
+    # the surface whose model readings at 4-20 m have KITTI's nonzero median there
     unit = _model_readings(r[near][::50], 1.0, 1e9, False)
     rho = ref / float(np.median(unit[unit > 0]))
     far = [(r[road & (r >= lo) & (r < hi)], float(np.median(v[road & (r >= lo) & (r < hi) & (v > 0)])),
