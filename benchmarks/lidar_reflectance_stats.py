@@ -199,8 +199,11 @@ def far_readings(v: np.ndarray, r: np.ndarray, road: np.ndarray) -> None:
     # the surface whose model readings at 4-20 m have KITTI's nonzero median there
     unit = _model_readings(r[near][::50], 1.0, 1e9, False)
     rho = ref / float(np.median(unit[unit > 0]))
-    far = [(r[road & (r >= lo) & (r < hi)], float(np.median(v[road & (r >= lo) & (r < hi) & (v > 0)])),
-            int(np.count_nonzero(road & (r >= lo) & (r < hi) & (v > 0)))) for lo, hi in bins[1:]]
+    far = []  # per bin: the road returns' ranges, KITTI's nonzero median, the nonzero count
+    for lo, hi in bins[1:]:
+        m = road & (r >= lo) & (r < hi)
+        lit = v[m & (v > 0)]
+        far.append((r[m], float(np.median(lit)), len(lit)))
 
     def medians(d0: float, same_draw: bool) -> list[float]:
         out = []

@@ -28,6 +28,7 @@ from tqdm import tqdm
 from kitti.dataset import KittiDataset
 from kitti.eval import evaluate, load_annotations
 from kitti.labels import read_label, write_label
+from lifter.methods import get_method
 from lifter.pipeline import lift_dataset
 
 SEED = 0
@@ -70,23 +71,30 @@ def main() -> None:
     ap.add_argument("--out", type=Path, required=True)
     args = ap.parse_args()
     ids = KittiDataset(args.data).ids(args.split)
-    roads = {"planes": args.data, "scan": without_planes(args.data, args.out / "no_planes")}
+    methods, roads = args.methods.split(","), args.roads.split(",")
+    folders = {"planes": args.data}
+    if "scan" in roads:
+        folders["scan"] = without_planes(args.data, args.out / "no_planes")
+    boxes = {s: noisy_boxes(args.data, ids, s, args.out / f"boxes_{s:g}")
+             for s in (float(x) for x in args.sigmas.split(","))}
     gt_all = load_annotations(args.data / "training" / "label_2")
     gt = {i: gt_all[i] for i in ids}
+    done: dict = {}  # a method that reads its road from the scan anyway gives one result per sigma
     print(f"{args.data}, split {args.split} ({len(ids)} frames): Car 3D AP|R40 moderate @0.7 / @0.5")
-    print("| road | side noise sd (px) | " + " | ".join(args.methods.split(",")) + " |")
-    print("|---|---" + "|---" * len(args.methods.split(",")) + "|")
-    for road in args.roads.split(","):
-        for sigma in (float(s) for s in args.sigmas.split(",")):
-            boxes = noisy_boxes(args.data, ids, sigma, args.out / f"boxes_{sigma:g}")
+    print("| road | side noise sd (px) | " + " | ".join(methods) + " |")
+    print("|---|---" + "|---" * len(methods) + "|")
+    for road in roads:
+        for sigma, folder in boxes.items():
             cells = []
-            for method in args.methods.split(","):
-                pred = args.out / f"{road}_{method}_{sigma:g}"
-                lift_dataset(roads[road], boxes, method, pred, args.split)
-                r = evaluate(gt, load_annotations(pred, ids=ids), classes=("Car",), metrics=("3d",))
-                cells.append(f"{r.ap['Car']['3d']['R40'][1]:.1f} / {r.ap_loose['Car']['3d']['R40'][1]:.1f}")
+            for method in methods:
+                key = (method, sigma, road if get_method(method).road == "planes-or-scan" else "scan")
+                if key not in done:
+                    pred = args.out / f"{road}_{method}_{sigma:g}"
+                    lift_dataset(folders[road], folder, method, pred, args.split)
+                    r = evaluate(gt, load_annotations(pred, ids=ids), classes=("Car",), metrics=("3d",))
+                    done[key] = f"{r.ap['Car']['3d']['R40'][1]:.1f} / {r.ap_loose['Car']['3d']['R40'][1]:.1f}"
+                cells.append(done[key])
             print(f"| {road} | {sigma:g} | " + " | ".join(cells) + " |", flush=True)
-
 
 if __name__ == "__main__":
     main()
