@@ -11,19 +11,36 @@ step below is the physical one, with `simgen.world.CameraResponse` holding its s
 2. white balance: red and blue gains off by a log-normal error against green;
 3. vignetting: illumination falling to `corner_illumination` at the image corner, as cos^4 of
    the field angle scaled to that value (lens data sheets give 50-85 % for compact lenses);
-4. blur: a Gaussian of `blur_sigma_px` for the lens and the bilinear rectification;
-5. the colour filter array: the filters' overlap mixes the channels (CROSSTALK), then each pixel
+4. blur: a Gaussian of `blur_sigma_px` (output pixels) for the lens;
+5. with `rectified` (the default), the image moves onto the raw sensor's pixels: the rendered
+   image is a rectified one, and KITTI's raw colour frames have the lens's barrel distortion and
+   a finer pitch (`rectification`);
+6. the colour filter array: the filters' overlap mixes the channels (CROSSTALK), then each pixel
    keeps one channel (RGGB);
-6. noise: shot noise of the collected electrons (Poisson, approximated by a Gaussian of
+7. noise: shot noise of the collected electrons (Poisson, approximated by a Gaussian of
    variance equal to the count) and read noise, at `full_well_e` electrons for the white level;
-7. demosaicing (OpenCV's bilinear Bayer interpolation) and the output curve to 8 bits,
-   signal ** (1 / gamma): 2.2 is sRGB-like; machine-vision cameras such as the Flea2 can also
-   put out the linear signal (gamma 1), which leaves shadows far darker. KITTI's frames are near
-   linear (KEY and the default output gamma, 1.2).
+8. demosaicing (OpenCV's bilinear Bayer interpolation) on those pixels;
+9. with `rectified`, the rectification: undistorted and resampled (bilinear) back to the output
+   pixels, as KITTI's published frames were made from the raw ones;
+10. the output curve to 8 bits, signal ** (1 / gamma): 2.2 is sRGB-like; machine-vision cameras
+   such as the Flea2 can also put out the linear signal (gamma 1), which leaves shadows far
+   darker. KITTI's frames are near linear (KEY and the default output gamma, 1.2).
+
+Why 5 and 9 matter: the colour filter array and its demosaicing leave colour fringes one raw pixel
+wide on every sharp edge. In KITTI's frames those pixels are 0.75 of an output pixel at the centre
+and are then averaged by the rectification's interpolation; at the left and right edges, where the
+barrel distortion packed the scene tighter, the rectification enlarges them (1.4 output pixels a
+raw pixel), so KITTI's frames are softer at their sides than at their centre. Sampled at the
+output's own pixels instead, every edge carried full-strength fringes two output pixels wide.
+The two resamplings blur by 1/6 px^2 each in their own pixels (bilinear weights f, 1 - f over a
+uniform f): the render onto the raw pixels (an artefact of rendering at the output's pitch) and the
+rectification, 1/6 + 1/6 x 0.75^2 = 0.26 output px^2 at the centre, which the lens blur's ranges
+in the scene specs leave out.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from functools import lru_cache
 
 import cv2
@@ -55,6 +72,17 @@ LOG_FLOOR = 1e-4  # keeps black pixels out of the log average (Reinhard's delta)
 # 1.2) needs it (a lit night street's log average is about 1/50 of the key: with x8 it came out
 # at a mean grey of 7). Day frames need x1.7-5 (30 frames of scenes/urban_dr.yaml).
 GAIN_LIMITS = (0.25, 64.0)
+
+
+# KITTI's raw colour camera 02 and its rectification, from the raw data's calib_cam_to_cam.txt
+# (2011_09_26, the calibration of the object benchmark's drives): S_02 1392 x 512 raw pixels,
+# K_02 focal lengths 959.7910 / 956.9251 px, D_02 (k1, k2, p1, p2, k3) below (OpenCV's
+# Brown-Conrady model), and the rectified image's P_rect_02 focal length 721.5377 px (S_rect_02
+# 1242 x 375). The raw pitch is kept relative to the rig's own focal length, so a rig of another
+# size or focal length gets KITTI's resampling; R_rect_02's rotation (under 1 degree) is left out.
+RAW_FOCAL_RATIO = (959.7910 / 721.5377, 956.9251 / 721.5377)  # raw pixels a rectified one, x and y
+RAW_DISTORTION = (-0.3691481, 0.1968681, 0.001353473, 0.0005677587, -0.06770705)
+RAW_MARGIN = 2  # raw pixels kept round what the rectified frame reads (bilinear and demosaic reach)
 
 
 LUMA = np.array([0.2126, 0.7152, 0.0722])  # Rec. 709 luminance of linear RGB
@@ -89,6 +117,12 @@ def expose(lin: np.ndarray, K: np.ndarray, cam: CameraResponse, rng: np.random.G
     if cam.blur_sigma_px > 0:
         img = cv2.GaussianBlur(img.astype(np.float32), (0, 0), cam.blur_sigma_px)
     if cam.bayer:
+        rect = rectification(H, W, tuple(np.asarray(K, float)[[0, 1, 0, 1], [0, 1, 2, 2]])) \
+            if cam.rectified else None
+        if rect is not None:
+            img = cv2.remap(img.astype(np.float32), *rect.raw_from_output, cv2.INTER_LINEAR,
+                            borderMode=cv2.BORDER_REPLICATE)
+            H, W = img.shape[:2]
         m = _crosstalk()  # each site records its filter's mix of the three channels (RGGB)
         raw = np.empty((H, W), np.float32)
         raw[0::2, 0::2] = img[0::2, 0::2] @ m[0]
@@ -99,9 +133,78 @@ def expose(lin: np.ndarray, K: np.ndarray, cam: CameraResponse, rng: np.random.G
         raw = _noisy(raw, cam, rng)
         raw16 = np.round(raw * 65535.0).astype(np.uint16)
         # OpenCV names a pattern by the second row's first two pixels: RGGB is its "BayerBG".
-        return _output_table(cam.gamma)[cv2.cvtColor(raw16, cv2.COLOR_BayerBG2RGB)]
+        rgb16 = cv2.cvtColor(raw16, cv2.COLOR_BayerBG2RGB)
+        if rect is not None:
+            rgb16 = cv2.remap(rgb16, *rect.output_from_raw, cv2.INTER_LINEAR)
+        return _output_table(cam.gamma)[rgb16]
     img = np.clip(img, 0.0, 1.0).astype(np.float32)
     return _output_curve(_noisy(img, cam, rng), cam.gamma)
+
+
+@dataclass(frozen=True)
+class Rectification:
+    """The resampling between a rectified image and its raw camera's pixels, as cv2.remap maps
+    (fixed point, 1/32 pixel): `raw_from_output` gives every raw pixel its place in the rectified
+    image (how the raw image is drawn from the render), `output_from_raw` every rectified pixel
+    its place on the raw sensor (the rectification itself)."""
+
+    raw_size: tuple[int, int]  # (H, W) of the simulated raw frame
+    raw_from_output: tuple[np.ndarray, np.ndarray]
+    output_from_raw: tuple[np.ndarray, np.ndarray]
+
+
+def distort(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Normalised undistorted image coordinates to distorted ones through RAW_DISTORTION
+    (OpenCV's model: radial k1 r^2 + k2 r^4 + k3 r^6, tangential p1, p2)."""
+    k1, k2, p1, p2, k3 = RAW_DISTORTION
+    r2 = x * x + y * y
+    radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
+    return (x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x),
+            y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y)
+
+
+def undistort(xd: np.ndarray, yd: np.ndarray, iterations: int = 8) -> tuple[np.ndarray, np.ndarray]:
+    """The inverse of `distort` by Newton's method on the 2 x 2 Jacobian, from the distorted
+    point itself (quadratic convergence wherever the distortion stays monotone, out to r 1.2:
+    the simulated raw frame's farthest pixel lies at r 0.99 for KITTI's rectified frame)."""
+    k1, k2, p1, p2, k3 = RAW_DISTORTION
+    x, y = xd.copy(), yd.copy()
+    for _ in range(iterations):
+        r2 = x * x + y * y
+        radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
+        dradial = k1 + r2 * (2.0 * k2 + 3.0 * k3 * r2)  # d radial / d r2
+        fx, fy = distort(x, y)
+        a = radial + 2.0 * x * x * dradial + 2.0 * p1 * y + 6.0 * p2 * x  # d fx / dx
+        b = 2.0 * x * y * dradial + 2.0 * p1 * x + 2.0 * p2 * y  # d fx / dy = d fy / dx
+        d = radial + 2.0 * y * y * dradial + 6.0 * p1 * y + 2.0 * p2 * x  # d fy / dy
+        ex, ey = fx - xd, fy - yd
+        det = a * d - b * b
+        x = x - (d * ex - b * ey) / det
+        y = y - (a * ey - b * ex) / det
+    return x, y
+
+
+@lru_cache(maxsize=4)
+def rectification(H: int, W: int, f_c: tuple[float, float, float, float]) -> Rectification:
+    """The raw camera behind a rectified H x W image of focal lengths and principal point
+    f_c = (fx, fy, cx, cy): RAW_FOCAL_RATIO times its focal lengths, distorted by RAW_DISTORTION,
+    its frame the rectified image's footprint plus RAW_MARGIN."""
+    fx, fy, cx, cy = f_c
+    rx, ry = RAW_FOCAL_RATIO
+    u, v = np.meshgrid(np.arange(W, dtype=np.float64), np.arange(H, dtype=np.float64))
+    xd, yd = distort((u - cx) / fx, (v - cy) / fy)
+    px, py = xd * (rx * fx), yd * (ry * fy)  # raw pixels about the raw principal point
+    ox, oy = RAW_MARGIN - np.floor(px.min()), RAW_MARGIN - np.floor(py.min())
+    raw_w = int(np.ceil(px.max() + ox)) + RAW_MARGIN + 1
+    raw_h = int(np.ceil(py.max() + oy)) + RAW_MARGIN + 1
+    raw_w += raw_w % 2  # whole RGGB cells
+    raw_h += raw_h % 2
+    i, j = np.meshgrid(np.arange(raw_w, dtype=np.float64), np.arange(raw_h, dtype=np.float64))
+    x, y = undistort((i - ox) / (rx * fx), (j - oy) / (ry * fy))
+    back = cv2.convertMaps((x * fx + cx).astype(np.float32), (y * fy + cy).astype(np.float32),
+                           cv2.CV_16SC2)
+    forward = cv2.convertMaps((px + ox).astype(np.float32), (py + oy).astype(np.float32), cv2.CV_16SC2)
+    return Rectification((raw_h, raw_w), back, forward)
 
 
 @lru_cache(maxsize=1)

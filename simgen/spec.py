@@ -185,10 +185,16 @@ class CameraSpec(Strict):
     exposure_ev: factor(float, -4.0, 4.0) = 0.0  # offset from the auto-exposure, in stops
     white_balance_sd: factor(float, 0.0, 0.5) = 0.03  # log sd of the red and blue gains
     corner_illumination: factor(float, 0.2, 1.0) = 0.75  # vignetting at the image corner
-    blur_sigma_px: factor(float, 0.0, 5.0) = 0.5  # lens and rectification blur
+    # The lens blur, output pixels. With `rectified` the rectification's own (0.26 px^2 at the
+    # centre, simgen.camera) comes on top: the default 0.5 of lens and rectification together
+    # leaves nothing for the lens in quadrature.
+    blur_sigma_px: factor(float, 0.0, 5.0) = 0.0
     full_well_e: factor(float, 0.0, 1e6) = 10000.0  # electrons at the white level; 0 = no noise
     read_noise_e: factor(float, 0.0, 1000.0) = 10.0
     bayer: bool = True  # RGGB colour filter array and demosaicing
+    # with bayer: the array on KITTI's raw camera pixels (its lens distortion and finer pitch),
+    # then rectified back to the output's pixels as KITTI's frames were (simgen.camera)
+    rectified: bool = True
     # The output curve: 1.2 is KITTI-like (simgen.camera.KEY), 2.2 sRGB-like, 1 linear.
     gamma: factor(float, 1.0, 3.0) = 1.2
 

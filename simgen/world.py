@@ -119,10 +119,13 @@ class CameraResponse:
     exposure_ev: float = 0.0  # offset from the auto-exposure (log-average luminance to 0.18)
     white_balance_sd: float = 0.03  # log sd of the red and blue gains against green
     corner_illumination: float = 0.75  # vignetting: relative illumination at the image corner
-    blur_sigma_px: float = 0.5  # optics and rectification, a Gaussian of this sd in pixels
+    blur_sigma_px: float = 0.0  # the lens, a Gaussian of this sd in output pixels (spec.CameraSpec)
     full_well_e: float = 10000.0  # electrons at the white level (shot noise); 0 = no noise
     read_noise_e: float = 10.0
     bayer: bool = True  # sample through an RGGB colour filter array, then demosaic
+    # the colour filter array on KITTI's raw pixels (distorted, finer), then rectified back
+    # (bilinear) as KITTI's frames are; False: on the output's own pixels (simgen.camera)
+    rectified: bool = True
     gamma: float = 1.2  # output curve, value = signal ** (1 / gamma); KITTI-like (camera.KEY)
 
 

@@ -1,12 +1,14 @@
-"""The colour camera (simgen.camera): metering, vignetting, noise and demosaicing against the
-values their definitions give."""
+"""The colour camera (simgen.camera): metering, vignetting, noise, demosaicing and KITTI's
+rectification against the values their definitions and KITTI's calibration give."""
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import pytest
 
-from simgen.camera import CROSSTALK, GAMMA, KEY, LOG_FLOOR, _noisy, _vignetting, expose
+from simgen.camera import (CROSSTALK, GAMMA, KEY, LOG_FLOOR, _noisy, _vignetting, distort, expose,
+                           rectification, undistort)
 from simgen.world import CameraResponse
 
 K = np.array([[721.5, 0.0, 609.6], [0.0, 721.5, 172.9], [0.0, 0.0, 1.0]])
@@ -84,3 +86,77 @@ def test_same_generator_same_image_and_noise_changes_it():
     b = expose(lin, K, cam, np.random.default_rng(9))
     c = expose(lin, K, cam, np.random.default_rng(10))
     assert np.array_equal(a, b) and not np.array_equal(a, c)
+
+
+# KITTI's raw colour camera 02 (calib_cam_to_cam.txt of 2011_09_26) and its rectified image.
+KITTI = np.array([[721.5377, 0.0, 609.5593], [0.0, 721.5377, 172.854], [0.0, 0.0, 1.0]])
+RAW_FX, RAW_FY = 959.7910, 956.9251
+D02 = (-0.3691481, 0.1968681, 0.001353473, 0.0005677587, -0.06770705)
+
+
+def _raw_u(u: float, v: float) -> float:
+    """A rectified pixel's raw column, by OpenCV's distortion model written out (up to the raw
+    frame's offset)."""
+    k1, k2, p1, p2, k3 = D02
+    x, y = (u - KITTI[0, 2]) / KITTI[0, 0], (v - KITTI[1, 2]) / KITTI[1, 1]
+    r2 = x * x + y * y
+    return RAW_FX * (x * (1 + k1 * r2 + k2 * r2 ** 2 + k3 * r2 ** 3) + 2 * p1 * x * y + p2 * (r2 + 2 * x * x))
+
+
+def _forward(rect) -> tuple[np.ndarray, np.ndarray]:
+    return cv2.convertMaps(*rect.output_from_raw, cv2.CV_32FC1)
+
+
+def test_the_raw_frame_is_kittis_sensor_seen_through_its_lens():
+    rect = rectification(375, 1242, tuple(KITTI[[0, 1, 0, 1], [0, 1, 2, 2]]))
+    # The rectified frame comes from within the Flea2's 1392 x 512 raw frame.
+    assert rect.raw_size[0] <= 512 and rect.raw_size[1] <= 1392
+    mx, _ = _forward(rect)
+    # Raw pixels per output pixel along the row through the principal point: 1.33 at the centre,
+    # where the distortion is nil; 0.72 at the left edge and 0.69 at the right, where the barrel
+    # distortion packed the scene tighter (finite differences of the model written out above).
+    for u0 in (0, 609, 1239):
+        hand = (_raw_u(u0 + 2, 173) - _raw_u(u0, 173)) / 2
+        assert (mx[173, u0 + 2] - mx[173, u0]) / 2 == pytest.approx(hand, abs=1 / 32)
+    assert (_raw_u(611, 173) - _raw_u(609, 173)) / 2 == pytest.approx(RAW_FX / KITTI[0, 0], rel=1e-5)
+    assert (_raw_u(2, 173) - _raw_u(0, 173)) / 2 == pytest.approx(0.718, abs=0.005)
+
+
+def test_undistort_inverts_distort_over_the_raw_frame():
+    xd, yd = np.meshgrid(np.linspace(-0.69, 0.71, 141), np.linspace(-0.24, 0.28, 53))
+    x, y = undistort(xd, yd)
+    a, b = distort(x, y)
+    assert np.abs(a - xd).max() < 1e-12 and np.abs(b - yd).max() < 1e-12
+
+
+@pytest.mark.parametrize("edge", [100.5, 609.5, 1100.5])
+def test_the_rectified_camera_leaves_an_edge_where_it_was(edge):
+    """A vertical step from dark to light keeps its place to a tenth of a pixel at the centre
+    and at both sides: the labels' boxes stay the image's."""
+    lin = np.full((375, 1242, 3), 0.05)
+    lin[:, int(edge + 0.5):] = 0.4
+    cam = CameraResponse(**{**CLEAN.__dict__, "bayer": True, "gamma": 1.0})
+    grey = expose(lin, KITTI, cam, np.random.default_rng(0))[150:200].astype(float).mean(axis=(0, 2))
+    lo, hi = grey[int(edge) - 8], grey[int(edge) + 9]
+    half = (lo + hi) / 2
+    i = int(np.flatnonzero(grey > half)[0])
+    crossing = i - 1 + (half - grey[i - 1]) / (grey[i] - grey[i - 1])
+    assert crossing == pytest.approx(edge, abs=0.1)
+
+
+def test_rectification_takes_the_colour_fringes_off_an_edge_and_softens_the_sides():
+    lin = np.full((375, 1242, 3), 0.05)
+    lin[:, 610:] = 0.4  # grey stays grey: any colour at the edge is the mosaic's
+    fringe = {}
+    for rectified in (False, True):
+        cam = CameraResponse(**{**CLEAN.__dict__, "bayer": True, "gamma": 1.0, "rectified": rectified})
+        out = expose(lin, KITTI, cam, np.random.default_rng(0))[150:200, 600:620].astype(float)
+        fringe[rectified] = np.ptp(out, axis=2).max()
+    assert fringe[True] < 0.6 * fringe[False]
+    # Stripes 3 px wide: where the rectification enlarges the raw pixels (the sides) they keep
+    # less of their contrast than at the centre, where it shrinks them.
+    stripes = np.full((375, 1242, 3), 0.05)
+    stripes[:, (np.arange(1242) // 3) % 2 == 1] = 0.4
+    cam = CameraResponse(**{**CLEAN.__dict__, "bayer": True, "gamma": 1.0})
+    grey = expose(stripes, KITTI, cam, np.random.default_rng(0))[150:200].astype(float).mean(axis=(0, 2))
+    assert np.ptp(grey[20:60]) < 0.8 * np.ptp(grey[590:630])
