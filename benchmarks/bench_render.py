@@ -3,7 +3,8 @@
 Prints (1) the world sampling time (scenery and actor meshes) and the render time per 1242x375
 frame of scenes/urban.yaml, split into scene build, colour pass (4x MSAA),
 segmentation+depth pass, sun shadows (Embree), the look and camera (fog/rain/sensor, exposure,
-noise, demosaicing) and the label derivation; (2) complete frames per second (sample + render + labels + all files, no LiDAR,
+noise, demosaicing; beside it the same with the camera's rectification off, the CFA on the output's
+own pixels, timed in the same loop) and the label derivation; (2) complete frames per second (sample + render + labels + all files, no LiDAR,
 and with the spec's LiDAR) of `simgen.generate` with 1 and 2 worker processes.
 
     .venv/bin/python benchmarks/bench_render.py [--frames N] [--spec scenes/urban.yaml] [--breakdown-only]
@@ -12,6 +13,7 @@ and with the spec's LiDAR) of `simgen.generate` with 1 and 2 worker processes.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import shutil
 import tempfile
 import time
@@ -38,7 +40,8 @@ def render_breakdown(spec, n: int) -> None:
         sample_ms.append(1000 * (time.perf_counter() - t0))
     r = renderer(worlds[0].rig.width, worlds[0].rig.height)
     build_scene(worlds[0]).colour_pass(r)  # warm-up: shaders compile on the first render
-    t = {"build": [], "colour": [], "seg+depth": [], "shadows": [], "look": [], "labels": []}
+    t = {"build": [], "colour": [], "seg+depth": [], "shadows": [], "look": [], "labels": [],
+         "look, rectification off": []}
     for w in worlds:
         t0 = time.perf_counter()
         built = build_scene(w)
@@ -55,8 +58,12 @@ def render_breakdown(spec, n: int) -> None:
         t5 = time.perf_counter()
         derive(w, inst, spec.labels)
         t6 = time.perf_counter()
+        apply_look(rgb, depth, w.rig.intrinsics(), w.weather, w.light, w.sensor, factor_rng(0, 0, "look"),
+                   HEADROOM if lit else 1.0, dataclasses.replace(w.camera, rectified=False))
+        t7 = time.perf_counter()
         for k, a, b in (("build", t0, t1), ("colour", t1, t2), ("seg+depth", t2, t3),
-                        ("shadows", t3, t4), ("look", t4, t5), ("labels", t5, t6)):
+                        ("shadows", t3, t4), ("look", t4, t5), ("labels", t5, t6),
+                        ("look, rectification off", t6, t7)):
             t[k].append(1000 * (b - a))
     actors = np.mean([len(w.actors) for w in worlds])
     print(f"{spec.name}: {n} frames of {worlds[0].rig.width}x{worlds[0].rig.height}, "
@@ -65,6 +72,7 @@ def render_breakdown(spec, n: int) -> None:
           "(simgen.sample_world: scenery and actor meshes)")
     for k, v in t.items():
         print(f"  {k:10s} {np.median(v):7.1f} ms median  {np.mean(v):7.1f} ms mean")
+    print("  (the look's first frame builds the rectification maps, once a process)")
     render = sum(np.array(t[k]) for k in ("build", "colour", "seg+depth", "shadows"))
     print(f"  RENDER (build + colour + seg/depth + shadows): {np.median(render):.1f} ms median per frame")
 
