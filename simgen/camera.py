@@ -146,9 +146,9 @@ class Rectification:
     """The resampling between a rectified image and its raw camera's pixels, as cv2.remap maps
     (fixed point, 1/32 pixel): `raw_from_output` gives every raw pixel its place in the rectified
     image (how the raw image is drawn from the render), `output_from_raw` every rectified pixel
-    its place on the raw sensor (the rectification itself)."""
+    its place on the raw sensor (the rectification itself). The first map's shape is the
+    simulated raw frame's (H, W)."""
 
-    raw_size: tuple[int, int]  # (H, W) of the simulated raw frame
     raw_from_output: tuple[np.ndarray, np.ndarray]
     output_from_raw: tuple[np.ndarray, np.ndarray]
 
@@ -204,7 +204,7 @@ def rectification(H: int, W: int, f_c: tuple[float, float, float, float]) -> Rec
     back = cv2.convertMaps((x * fx + cx).astype(np.float32), (y * fy + cy).astype(np.float32),
                            cv2.CV_16SC2)
     forward = cv2.convertMaps((px + ox).astype(np.float32), (py + oy).astype(np.float32), cv2.CV_16SC2)
-    return Rectification((raw_h, raw_w), back, forward)
+    return Rectification(back, forward)
 
 
 @lru_cache(maxsize=1)

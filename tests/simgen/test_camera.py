@@ -110,7 +110,8 @@ def _forward(rect) -> tuple[np.ndarray, np.ndarray]:
 def test_the_raw_frame_is_kittis_sensor_seen_through_its_lens():
     rect = rectification(375, 1242, tuple(KITTI[[0, 1, 0, 1], [0, 1, 2, 2]]))
     # The rectified frame comes from within the Flea2's 1392 x 512 raw frame.
-    assert rect.raw_size[0] <= 512 and rect.raw_size[1] <= 1392
+    raw_h, raw_w = rect.raw_from_output[0].shape[:2]
+    assert raw_h <= 512 and raw_w <= 1392
     mx, _ = _forward(rect)
     # Raw pixels per output pixel along the row through the principal point: 1.33 at the centre,
     # where the distortion is nil; 0.72 at the left edge and 0.69 at the right, where the barrel
