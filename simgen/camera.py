@@ -173,7 +173,8 @@ def undistort(xd: np.ndarray, yd: np.ndarray, iterations: int = 8) -> tuple[np.n
         r2 = x * x + y * y
         radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
         dradial = k1 + r2 * (2.0 * k2 + 3.0 * k3 * r2)  # d radial / d r2
-        fx, fy = distort(x, y)
+        fx = x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x)  # distort(x, y), its r2 reused
+        fy = y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y
         a = radial + 2.0 * x * x * dradial + 2.0 * p1 * y + 6.0 * p2 * x  # d fx / dx
         b = 2.0 * x * y * dradial + 2.0 * p1 * x + 2.0 * p2 * y  # d fx / dy = d fy / dx
         d = radial + 2.0 * y * y * dradial + 6.0 * p1 * y + 2.0 * p2 * x  # d fy / dy
