@@ -4,11 +4,12 @@ KITTI's colour cameras are Point Grey Flea2 FL2-14S3C: 1/2" Sony ICX267 CCDs beh
 colour filter array, whose frames the dataset publishes demosaiced, rectified and 8-bit. Each
 step below is the physical one, with `simgen.world.CameraResponse` holding its strength:
 
-1. exposure: automatic, the gain that brings the log-average scene luminance to the key KEY of
-   the white level (Reinhard et al. 2002, "Photographic tone reproduction for digital images",
-   whose middle grey is 0.18), times 2 ** exposure_ev: a bright sky weighs no more than its share
-   of the frame, and it and sunlit white saturate as they do in KITTI's frames;
-2. white balance: red and blue gains off by a log-normal error against green;
+1. exposure: automatic, the gain that brings the log-average luminance of the balanced image
+   (step 8) to the key KEY of the white level (Reinhard et al. 2002, "Photographic tone
+   reproduction for digital images", whose middle grey is 0.18), times 2 ** exposure_ev: a bright
+   sky weighs no more than its share of the frame, and it and sunlit white saturate as they do in
+   KITTI's frames;
+2. white balance error: red and blue gains off by a log-normal error against green;
 3. vignetting: illumination falling to `corner_illumination` at the image corner, as cos^4 of
    the field angle scaled to that value (lens data sheets give 50-85 % for compact lenses);
 4. blur: a Gaussian of `blur_sigma_px` (output pixels) for the lens;
@@ -19,14 +20,16 @@ step below is the physical one, with `simgen.world.CameraResponse` holding its s
    keeps one channel (RGGB);
 7. noise: shot noise of the collected electrons (Poisson, approximated by a Gaussian of
    variance equal to the count) and read noise, at `full_well_e` electrons for the white level;
-8. demosaicing (OpenCV's bilinear Bayer interpolation) on those pixels;
-9. with `rectified`, the rectification: undistorted and resampled (bilinear) back to the output
+8. colour balance: KITTI's gains on the raw channels (BALANCE), none below 1, clipped at the
+   white level, so that what saturates comes out white as in KITTI's frames;
+9. demosaicing (OpenCV's bilinear Bayer interpolation) on those pixels;
+10. with `rectified`, the rectification: undistorted and resampled (bilinear) back to the output
    pixels, as KITTI's published frames were made from the raw ones;
-10. the output curve to 8 bits, signal ** (1 / gamma): 2.2 is sRGB-like; machine-vision cameras
+11. the output curve to 8 bits, signal ** (1 / gamma): 2.2 is sRGB-like; machine-vision cameras
    such as the Flea2 can also put out the linear signal (gamma 1), which leaves shadows far
    darker. KITTI's frames are near linear (KEY and the default output gamma, 1.2).
 
-Why 5 and 9 matter: the colour filter array and its demosaicing leave colour fringes one raw pixel
+Why 5 and 10 matter: the colour filter array and its demosaicing leave colour fringes one raw pixel
 wide on every sharp edge. In KITTI's frames those pixels are 0.75 of an output pixel at the centre
 and are then averaged by the rectification's interpolation; at the left and right edges, where the
 barrel distortion packed the scene tighter, the rectification enlarges them (1.4 output pixels a
@@ -65,6 +68,14 @@ KEY = 0.24
 # keeps 1 - 2 CROSSTALK of its own signal and CROSSTALK of each other's (rows sum to one: grey stays
 # grey).
 CROSSTALK = 0.15
+# KITTI's colour balance, from the same whole-set statistic: its channel means 93.8 / 98.8 / 95.9
+# put green above blue above red (G / R 1.053, B / R 1.022), a blue-green cast that the greys of
+# KITTI's roads carry. Gains on the raw channels (R, G, B) after the colour filters and the noise,
+# as a camera's white balance acts, none below 1 (what saturates the sensor comes out white, as in
+# KITTI's frames). These give generated urban frames the set's two ratios (`benchmarks/
+# tone_curve.py --frames 120 --balance`, scenes/urban.yaml: channel means 98.3 / 99.2 / 97.0 with no
+# gains, 95.2 / 100.2 / 97.3 with these; the level is the key's); no real frame is read.
+BALANCE = (1.0, 1.0762, 1.0628)
 LOG_FLOOR = 1e-4  # keeps black pixels out of the log average (Reinhard's delta)
 # An auto-exposure's range of gain and shutter, as factors of the reference exposure. The Flea2's
 # shutter runs from 0.01 ms to beyond 60 ms and its gain from 0 to 24 dB (x16): a daylight
@@ -103,13 +114,16 @@ def _vignetting(H: int, W: int, K: np.ndarray, corner: float) -> np.ndarray:
 
 
 def expose(lin: np.ndarray, K: np.ndarray, cam: CameraResponse, rng: np.random.Generator,
-           key: float = KEY) -> np.ndarray:
+           key: float = KEY, balance: tuple[float, float, float] = BALANCE) -> np.ndarray:
     """Linear scene radiance (H, W, 3) float, 1 = a white surface at the reference light, to the
-    camera's 8-bit RGB image; `key` is the auto-exposure's target (benchmarks/tone_curve.py tries
-    others)."""
+    camera's 8-bit RGB image; `key` is the auto-exposure's target and `balance` the gains on the
+    raw channels (benchmarks/tone_curve.py tries others)."""
     H, W = lin.shape[:2]
     log_average = float(np.exp(np.log(LOG_FLOOR + _luminance(lin[::4, ::4])).mean()))
-    gain = np.clip(key / log_average, *GAIN_LIMITS) * 2.0 ** cam.exposure_ev
+    # The meter reads the balanced image: the gains on the raw channels leave a grey's luminance
+    # where the key puts it.
+    gain = np.clip(key / (log_average * float(LUMA @ np.asarray(balance))), *GAIN_LIMITS) \
+        * 2.0 ** cam.exposure_ev
     wb = np.exp(rng.normal(0.0, cam.white_balance_sd, 3) * np.array([1.0, 0.0, 1.0]))
     img = lin * (gain * wb)
     if cam.corner_illumination < 1.0:
@@ -130,7 +144,7 @@ def expose(lin: np.ndarray, K: np.ndarray, cam: CameraResponse, rng: np.random.G
         raw[1::2, 0::2] = img[1::2, 0::2] @ m[1]
         raw[1::2, 1::2] = img[1::2, 1::2] @ m[2]
         raw = np.clip(raw, 0.0, 1.0)
-        raw = _noisy(raw, cam, rng)
+        raw = _balanced(_noisy(raw, cam, rng), balance)
         raw16 = np.round(raw * 65535.0).astype(np.uint16)
         # OpenCV names a pattern by the second row's first two pixels: RGGB is its "BayerBG".
         rgb16 = cv2.cvtColor(raw16, cv2.COLOR_BayerBG2RGB)
@@ -138,7 +152,7 @@ def expose(lin: np.ndarray, K: np.ndarray, cam: CameraResponse, rng: np.random.G
             rgb16 = cv2.remap(rgb16, *rect.output_from_raw, cv2.INTER_LINEAR)
         return _output_table(cam.gamma)[rgb16]
     img = np.clip(img, 0.0, 1.0).astype(np.float32)
-    return _output_curve(_noisy(img, cam, rng), cam.gamma)
+    return _output_curve(_noisy(img, cam, rng) * np.asarray(balance, np.float32), cam.gamma)
 
 
 @dataclass(frozen=True)
@@ -224,6 +238,19 @@ def _output_table(gamma: float) -> np.ndarray:
     """The 8-bit output of every demosaiced 16-bit value: one lookup per pixel instead of a
     float32 power (the same arithmetic per value, so the same bytes)."""
     return _output_curve(np.arange(65536, dtype=np.uint16).astype(np.float32) / 65535.0, gamma)
+
+
+def _balanced(raw: np.ndarray, balance: tuple[float, float, float]) -> np.ndarray:
+    """The RGGB mosaic with each site's channel gain, clipped to the white level again."""
+    if balance == (1.0, 1.0, 1.0):
+        return raw
+    r, g, b = (np.float32(v) for v in balance)
+    out = raw.copy()
+    out[0::2, 0::2] *= r
+    out[0::2, 1::2] *= g
+    out[1::2, 0::2] *= g
+    out[1::2, 1::2] *= b
+    return np.minimum(out, np.float32(1.0), out=out)
 
 
 def _noisy(signal: np.ndarray, cam: CameraResponse, rng: np.random.Generator) -> np.ndarray:

@@ -7,13 +7,14 @@ import cv2
 import numpy as np
 import pytest
 
-from simgen.camera import (CROSSTALK, GAMMA, KEY, LOG_FLOOR, _noisy, _vignetting, distort, expose,
-                           rectification, undistort)
+from simgen.camera import (BALANCE, CROSSTALK, GAMMA, KEY, LOG_FLOOR, LUMA, _noisy, _vignetting,
+                           distort, expose, rectification, undistort)
 from simgen.world import CameraResponse
 
 K = np.array([[721.5, 0.0, 609.6], [0.0, 721.5, 172.9], [0.0, 0.0, 1.0]])
 CLEAN = CameraResponse(white_balance_sd=0.0, corner_illumination=1.0, blur_sigma_px=0.0,
                        full_well_e=0.0, bayer=False)
+NEUTRAL = (1.0, 1.0, 1.0)  # no colour balance: the other steps alone
 
 
 def _linear(img8: np.ndarray, gamma: float = GAMMA) -> np.ndarray:
@@ -24,7 +25,8 @@ def _linear(img8: np.ndarray, gamma: float = GAMMA) -> np.ndarray:
 def test_auto_exposure_brings_the_log_average_luminance_to_the_key(ev, gamma):
     rng = np.random.default_rng(0)
     lin = rng.uniform(0.02, 0.3, (120, 160, 3))
-    out = expose(lin, K, CameraResponse(**{**CLEAN.__dict__, "exposure_ev": ev, "gamma": gamma}), rng)
+    out = expose(lin, K, CameraResponse(**{**CLEAN.__dict__, "exposure_ev": ev, "gamma": gamma}), rng,
+                 balance=NEUTRAL)
     w = np.array([0.2126, 0.7152, 0.0722])
     lum = _linear(out, gamma) @ w
     # The meter reads every 4th pixel of every 4th row.
@@ -56,7 +58,7 @@ def test_demosaicing_a_uniform_colour_gives_back_its_mix_through_the_colour_filt
     c = np.array([0.05, 0.10, 0.20])
     lin = np.broadcast_to(c, (64, 96, 3)).copy()
     cam = CameraResponse(**{**CLEAN.__dict__, "bayer": True})
-    out = expose(lin, K, cam, np.random.default_rng(0))
+    out = expose(lin, K, cam, np.random.default_rng(0), balance=NEUTRAL)
     inner = out[2:-2, 2:-2].reshape(-1, 3)
     assert np.ptp(inner, axis=0).max() <= 1  # one grey level of rounding
     # Each channel keeps 1 - 2 s of its own light and s of each other's (s = CROSSTALK), then
@@ -69,14 +71,34 @@ def test_demosaicing_a_uniform_colour_gives_back_its_mix_through_the_colour_filt
 
 def test_grey_stays_grey_through_the_colour_filters_and_a_primary_is_desaturated():
     cam = CameraResponse(**{**CLEAN.__dict__, "bayer": True, "gamma": 1.0, "exposure_ev": -1.0})
-    grey = expose(np.full((32, 32, 3), 0.2), K, cam, np.random.default_rng(0))[4:-4, 4:-4]
+    grey = expose(np.full((32, 32, 3), 0.2), K, cam, np.random.default_rng(0),
+                  balance=NEUTRAL)[4:-4, 4:-4]
     assert np.ptp(grey.reshape(-1, 3).mean(axis=0)) == 0
     red = np.zeros((32, 32, 3))
     red[..., 0] = 0.2
-    out = expose(red, K, cam, np.random.default_rng(0))[4:-4, 4:-4].reshape(-1, 3).mean(axis=0)
+    out = expose(red, K, cam, np.random.default_rng(0), balance=NEUTRAL)[4:-4, 4:-4]
+    out = out.reshape(-1, 3).mean(axis=0)
     # Linear output: green and blue each get CROSSTALK / (1 - 2 CROSSTALK) of red's signal.
     assert out[1] == out[2]
     assert out[1] / out[0] == pytest.approx(CROSSTALK / (1 - 2 * CROSSTALK), abs=0.01)
+
+
+@pytest.mark.parametrize("bayer", [True, False])
+def test_colour_balance_tints_a_grey_by_its_gains_keeps_its_luminance_and_clips_white_white(bayer):
+    cam = CameraResponse(**{**CLEAN.__dict__, "bayer": bayer, "gamma": 1.0, "exposure_ev": 1.0})
+    out = expose(np.full((32, 32, 3), 0.2), K, cam, np.random.default_rng(0))[4:-4, 4:-4]
+    out = out.reshape(-1, 3).mean(axis=0)
+    # Linear output: the exposed grey (key over the log average, one stop up) times each
+    # channel's gain over the gains' luminance (the meter reads the balanced image), by hand.
+    level = 255.0 * KEY / (LOG_FLOOR + 0.2) * 2.0 * 0.2
+    expected = level * np.asarray(BALANCE) / float(LUMA @ np.asarray(BALANCE))
+    assert np.abs(out - expected).max() <= 0.5 + 1e-9  # 8-bit rounding
+    assert float(LUMA @ out) == pytest.approx(level, abs=0.5)
+    assert out[1] > out[2] > out[0]  # KITTI's cast: green above blue above red
+    # A pixel that saturates the sensor comes out white, as KITTI's skies do.
+    scene = np.full((32, 32, 3), 0.05)
+    scene[8:24] = 50.0
+    assert (expose(scene, K, cam, np.random.default_rng(0))[10:22, 4:-4] == 255).all()
 
 
 def test_same_generator_same_image_and_noise_changes_it():
