@@ -1,10 +1,13 @@
 """Where two datasets' images differ in colour saturation (a diagnosis of the fidelity report's
 `images.saturation_mean`): the median over frames of the mean HSV saturation (OpenCV's 0-255
 scale) in five horizontal bands of the image, top to bottom, and among the pixels of five value
-(brightness) ranges; and the mean colour of the bottom band (mostly road), to tell a cast from
-chroma noise.
+(brightness) ranges; the mean colour of the bottom band (mostly road), to tell a cast from
+chroma noise; that band's colour noise and detail (robust SD, 1.4826 x the median absolute
+deviation, of R - G and of the grey once a Gaussian of 3 px is taken away: edges and paint
+barely move it); and the share of the pixels with green at 255 that are 255 in all three
+channels (white clipping: does the colour balance come before the clip?).
 
-    .venv/bin/python benchmarks/saturation_where.py --sim data/fidelity/urban200_rectified \
+    .venv/bin/python benchmarks/saturation_where.py --sim data/fidelity/urban200_balance \
         --real ../shared/kitti_real_dev [--frames 60]
 
 HSV saturation is (max - min) / max of a pixel's channels: a small colour cast on a dark grey
@@ -24,9 +27,18 @@ BANDS = 5
 VALUES = ((0, 40), (40, 80), (80, 140), (140, 200), (200, 256))
 
 
-def frame_saturation(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _robust_sd(x: np.ndarray) -> float:
+    return float(1.4826 * np.median(np.abs(x - np.median(x))))
+
+
+def _high_pass(x: np.ndarray) -> np.ndarray:
+    return x - cv2.GaussianBlur(x, (0, 0), 3.0)
+
+
+def frame_saturation(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(BANDS,) mean saturation per horizontal band, (len(VALUES),) per value range (NaN where
-    the frame has no pixel in that range) and the bottom band's mean R, G, B."""
+    the frame has no pixel in that range), the bottom band's mean R, G, B, and (the bottom band's
+    R - G noise, its grey detail, the white share of green-clipped pixels or NaN)."""
     bgr = cv2.imread(str(path))
     if bgr is None:
         raise SystemExit(f"{path}: not a readable image")
@@ -36,16 +48,23 @@ def frame_saturation(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     bands = np.array([s[a:b].mean() for a, b in zip(edges[:-1], edges[1:])])
     by_value = np.array([s[(v >= lo) & (v < hi)].mean() if np.any((v >= lo) & (v < hi)) else np.nan
                          for lo, hi in VALUES])
-    bottom = bgr[edges[-2]:].reshape(-1, 3).mean(axis=0)[::-1]
-    return bands, by_value, bottom
+    band = bgr[edges[-2]:].astype(np.float32)
+    bottom = band.reshape(-1, 3).mean(axis=0)[::-1]
+    grey = cv2.cvtColor(bgr[edges[-2]:], cv2.COLOR_BGR2GRAY).astype(np.float32)
+    clipped = bgr[..., 1] == 255
+    white = np.all(bgr[clipped] == 255, axis=1).mean() if clipped.sum() >= 100 else np.nan
+    noise = np.array([_robust_sd(_high_pass(band[..., 2] - band[..., 1])), _robust_sd(_high_pass(grey)),
+                      white])
+    return bands, by_value, bottom, noise
 
 
-def dataset_saturation(root: Path, frames: int | None) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+def dataset_saturation(root: Path, frames: int | None) -> tuple[np.ndarray, np.ndarray, np.ndarray,
+                                                                  np.ndarray, int]:
     files = sorted((root / "training" / "image_2").glob("*.png"))[:frames]
     if not files:
         raise SystemExit(f"{root}: no training/image_2/*.png")
     per = [frame_saturation(f) for f in files]
-    return (*(np.nanmedian([p[k] for p in per], axis=0) for k in range(3)), len(files))
+    return (*(np.nanmedian([p[k] for p in per], axis=0) for k in range(4)), len(files))
 
 
 def main() -> None:
@@ -56,7 +75,7 @@ def main() -> None:
     args = ap.parse_args()
     sides = {name: dataset_saturation(root, args.frames) for name, root in
              (("sim", args.sim), ("real", args.real))}
-    print("| median over frames | " + " | ".join(f"{k} ({v[3]} frames)" for k, v in sides.items()) + " |")
+    print("| median over frames | " + " | ".join(f"{k} ({v[4]} frames)" for k, v in sides.items()) + " |")
     print("|---|" + "---:|" * len(sides))
     for i in range(BANDS):
         print(f"| HSV saturation, rows band {i + 1} of {BANDS} (top to bottom) | "
@@ -66,6 +85,10 @@ def main() -> None:
               + " | ".join(f"{v[1][j]:.1f}" for v in sides.values()) + " |")
     print("| bottom band's mean R / G / B | "
           + " | ".join(" / ".join(f"{c:.1f}" for c in v[2]) for v in sides.values()) + " |")
+    for k, name in enumerate(("bottom band's colour noise: robust SD of high-passed R - G",
+                              "bottom band's detail: robust SD of the high-passed grey",
+                              "share of the pixels with green at 255 that are white")):
+        print(f"| {name} | " + " | ".join(f"{v[3][k]:.2f}" for v in sides.values()) + " |")
 
 
 if __name__ == "__main__":

@@ -10,7 +10,7 @@ from typing import Callable, Protocol
 
 import numpy as np
 
-from .images import CANNY, NEAR_CAR_PX
+from .images import CANNY, HIGH_PASS_PX, NEAR_CAR_PX
 from .lidar import FAR_M, GROUND_M, NEAR_M, SECTOR_DEG
 from .stats import DatasetStats, Draws
 
@@ -175,6 +175,10 @@ STATS: tuple[Stat, ...] = (
     Stat("images.edge_density", f"edge density (Canny {CANNY[0]}/{CANNY[1]})", "",
          med("images.edge_density")),
     Stat("images.png_bytes", "PNG file size", "bytes", med("images.png_bytes")),
+    Stat("images.road_colour_noise", f"bottom fifth's colour noise: robust SD of R - G after a "
+         f"{HIGH_PASS_PX:g}-px high-pass", "grey levels", med("images.road_colour_noise")),
+    Stat("images.road_detail", f"bottom fifth's detail: robust SD of the grey after a "
+         f"{HIGH_PASS_PX:g}-px high-pass", "grey levels", med("images.road_detail")),
     Stat("labels.objects_per_frame", "objects per frame (not DontCare)", "", med("labels.objects")),
     Stat("labels.cars_per_frame", "Cars per frame", "", med("labels.cars")),
     Stat("labels.distance_m", "object distance (ground x-z)", "m", med("labels.distance_m")),

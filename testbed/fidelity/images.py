@@ -21,6 +21,11 @@ FLAT = 1            # |dI/dx| below this (grey levels) is a flat pixel
 # A Car whose look is measured: its 2D box at least this tall (KITTI's "easy" height, about 28 m
 # and nearer for a 1.5 m car), untruncated and fully visible, so the box holds the car alone.
 NEAR_CAR_PX = 40
+# The road's fine structure: the bottom fifth of the frame (mostly road in a KITTI-like view), less
+# a Gaussian of HIGH_PASS_PX, read as a robust SD (1.4826 x the median absolute deviation, which
+# edges and lane paint barely move): in R - G (colour noise) and in the grey (detail).
+ROAD_ROWS = 0.2
+HIGH_PASS_PX = 3.0
 LEVELS = np.arange(256, dtype=np.uint8)  # of an 8-bit channel
 # The float32 gradient magnitude of each (|dI/dx|, |dI/dy|) pair of 8-bit pixels, at 256·dx + dy:
 # computed once, so the gradient histogram counts pairs instead of taking a square root a pixel.
@@ -45,6 +50,25 @@ def levels(channel: np.ndarray, n: int = 256) -> np.ndarray:
     return cv2.calcHist([channel], [0], None, [n], [0, n]).ravel().astype(np.int64)
 
 
+def robust_sd(x: np.ndarray) -> float:
+    """1.4826 x the median absolute deviation: the SD of a normal sample, robust to outliers."""
+    x = np.asarray(x, np.float64).ravel()
+    return float(1.4826 * np.median(np.abs(x - np.median(x))))
+
+
+def road_structure(img: np.ndarray, grey: np.ndarray) -> tuple[float, float]:
+    """(colour noise, detail) of the bottom ROAD_ROWS of a BGR image and its grey: robust SDs of
+    R - G and of the grey after a high-pass."""
+    top = int(round(img.shape[0] * (1.0 - ROAD_ROWS)))
+    band = img[top:].astype(np.float32)
+
+    def high_pass(x: np.ndarray) -> np.ndarray:
+        return x - cv2.GaussianBlur(x, (0, 0), HIGH_PASS_PX)
+
+    return (robust_sd(high_pass(band[..., 2] - band[..., 1])),
+            robust_sd(high_pass(grey[top:].astype(np.float32))))
+
+
 def image_stats(acc: Acc, img: np.ndarray, nbytes: int) -> np.ndarray:
     """The whole image's statistics; returns its grey image (cv2's BGR2GRAY). Means and
     histograms of a channel come from its level counts: a sum of 8-bit levels is exact in
@@ -63,6 +87,9 @@ def image_stats(acc: Acc, img: np.ndarray, nbytes: int) -> np.ndarray:
     acc.put("images.mean_abs_dx", dx.mean())
     acc.put("images.flat_share", np.count_nonzero(dx < FLAT) / dx.size)
     acc.put("images.edge_density", np.count_nonzero(cv2.Canny(grey, *CANNY)) / grey.size)
+    colour_noise, detail = road_structure(img, grey)
+    acc.put("images.road_colour_noise", colour_noise)
+    acc.put("images.road_detail", detail)
     acc.hist("images.grey", LEVELS, grey_n)
     acc.hist("images.saturation", LEVELS, sat_n)
     acc.hist("images.gradient", GRADIENT_MAG, levels(pairs, len(GRADIENT_MAG)))

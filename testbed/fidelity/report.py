@@ -14,7 +14,7 @@ from kitti.io import atomic_write_text
 
 from .bootstrap import LEVEL, SEED
 from .compare import Comparison, Row
-from .images import CANNY, NEAR_CAR_PX
+from .images import CANNY, HIGH_PASS_PX, NEAR_CAR_PX, ROAD_ROWS
 from .labels import CLASSES, KITTI_TRAINING_FRAMES, KITTI_TRAINING_LABELS
 from .lidar import FAR_M, GROUND_M, NEAR_M
 from .stats import DatasetStats
@@ -39,7 +39,10 @@ NOTES = f"""\
   reflectance of the returns beyond {FAR_M[0]:.0f} m.
 - Images are read with cv2; grey is cv2's BGR2GRAY; dI/dx is the forward difference along x;
   gradient magnitude is sqrt(dx^2 + dy^2) of forward differences; edges are Canny with thresholds
-  {CANNY[0]} and {CANNY[1]}.
+  {CANNY[0]} and {CANNY[1]}. The road's fine structure: in the bottom {ROAD_ROWS:.0%} of the rows,
+  R - G and the grey less a Gaussian blur of {HIGH_PASS_PX:g} px, each read as 1.4826 x its median
+  absolute deviation (a robust SD: lane paint and edges barely move it). Sensor noise moves both;
+  a surface's colour grain at one brightness only the first.
 - Objects are every label but DontCare. Projection gap: the label's 3D box corners projected with
   P2 and clipped to the image, max |side difference| against its 2D box.
 - A near, whole Car: a Car label at least {NEAR_CAR_PX} px tall, truncation 0, occlusion 0; its

@@ -12,6 +12,7 @@ import imageio.v3 as iio
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from scipy import ndimage
 
 from kitti.calib import read_calib
 from kitti.labels import read_label
@@ -60,6 +61,14 @@ def _hand_proj_gap(label_path: Path, calib_path: Path, size: tuple[int, int]) ->
     return float(np.abs(box - obj.bbox).max())
 
 
+def _high_pass(x: np.ndarray) -> np.ndarray:
+    return x - ndimage.gaussian_filter(x, 3.0, mode="mirror", truncate=4.0)
+
+
+def _robust_sd(x: np.ndarray) -> float:
+    return 1.4826 * np.median(np.abs(x - np.median(x)))
+
+
 def test_report_numbers_match_a_hand_computation_on_one_real_frame(real_root, tmp_path):
     stats = compute_stats(real_root, frames=1)
     assert stats.frames == ["000000"]
@@ -94,6 +103,10 @@ def test_report_numbers_match_a_hand_computation_on_one_real_frame(real_root, tm
         "images.mean_abs_dx": dx.mean(),
         "images.grey_sd": grey.std(),
         "images.flat_share": np.mean(dx < 1),
+        # the bottom fifth (this frame is 370 rows tall: rows 296-369), less a Gaussian of 3 px
+        # (scipy's, mirrored at the edges as cv2's default), as 1.4826 x the median absolute deviation
+        "images.road_colour_noise": _robust_sd(_high_pass(rgb[296:, :, 0] - rgb[296:, :, 1])),
+        "images.road_detail": _robust_sd(_high_pass(grey[296:])),
         "labels.objects_per_frame": 1,
         "labels.proj_gap_px": _hand_proj_gap(t / "label_2/000000.txt", t / "calib/000000.txt",
                                              (rgb.shape[1], rgb.shape[0])),
