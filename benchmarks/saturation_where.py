@@ -2,9 +2,9 @@
 `images.saturation_mean`): the median over frames of the mean HSV saturation (OpenCV's 0-255
 scale) in five horizontal bands of the image, top to bottom, and among the pixels of five value
 (brightness) ranges; the mean colour of the bottom band (mostly road), to tell a cast from
-chroma noise; that band's colour noise and detail (robust SD, 1.4826 x the median absolute
-deviation, of R - G and of the grey once a Gaussian of 3 px is taken away: edges and paint
-barely move it); and the share of the pixels with green at 255 that are 255 in all three
+chroma noise; that band's colour noise and detail (the fidelity report's
+`images.road_colour_noise` and `images.road_detail`, `testbed.fidelity.images.road_structure`);
+and the share of the pixels with green at 255 that are 255 in all three
 channels (white clipping: does the colour balance come before the clip?).
 
     .venv/bin/python benchmarks/saturation_where.py --sim data/fidelity/urban200_balance \
@@ -23,16 +23,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from testbed.fidelity.images import road_structure
+
 BANDS = 5
 VALUES = ((0, 40), (40, 80), (80, 140), (140, 200), (200, 256))
-
-
-def _robust_sd(x: np.ndarray) -> float:
-    return float(1.4826 * np.median(np.abs(x - np.median(x))))
-
-
-def _high_pass(x: np.ndarray) -> np.ndarray:
-    return x - cv2.GaussianBlur(x, (0, 0), 3.0)
 
 
 def frame_saturation(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -48,13 +42,11 @@ def frame_saturation(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, np
     bands = np.array([s[a:b].mean() for a, b in zip(edges[:-1], edges[1:])])
     by_value = np.array([s[(v >= lo) & (v < hi)].mean() if np.any((v >= lo) & (v < hi)) else np.nan
                          for lo, hi in VALUES])
-    band = bgr[edges[-2]:].astype(np.float32)
-    bottom = band.reshape(-1, 3).mean(axis=0)[::-1]
-    grey = cv2.cvtColor(bgr[edges[-2]:], cv2.COLOR_BGR2GRAY).astype(np.float32)
+    bottom = bgr[edges[-2]:].reshape(-1, 3).mean(axis=0)[::-1]
     clipped = bgr[..., 1] == 255
     white = np.all(bgr[clipped] == 255, axis=1).mean() if clipped.sum() >= 100 else np.nan
-    noise = np.array([_robust_sd(_high_pass(band[..., 2] - band[..., 1])), _robust_sd(_high_pass(grey)),
-                      white])
+    # the fidelity report's own rows (its bottom fifth is this bottom band)
+    noise = np.array([*road_structure(bgr, cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY)), white])
     return bands, by_value, bottom, noise
 
 

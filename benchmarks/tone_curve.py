@@ -9,7 +9,8 @@ computed (every pixel of every frame). With `--balance` it instead finds the gai
 channels (`simgen.camera.BALANCE`) that give the frames the set's three channel means at the
 default key and curve: from neutral gains, each step multiplies a channel's gain by (the set's
 mean / the frames' mean) ** gamma, then divides all three by the least (a camera's digital gains
-are at least 1; the exposure meters the balanced image, so the level is the key's). Nothing here reads a real frame.
+are at least 1; the exposure meters the balanced image, so the level is the key's). Nothing here
+reads a real frame.
 
     .venv/bin/python benchmarks/tone_curve.py [--spec scenes/urban.yaml] [--frames 24] [--balance]
 """
