@@ -30,9 +30,10 @@ from simgen.look import rendered_radiance
 from simgen.render import render
 from simgen.sample import sample_world
 from simgen.spec import load_spec
+from testbed.fidelity.images import KITTI_TRAINING_PIXEL_MEAN, KITTI_TRAINING_PIXEL_SD
 
-KITTI_MEAN = np.array([93.83, 98.76, 95.88])
-KITTI_SD = np.array([78.78, 80.13, 81.20])
+KITTI_MEAN = np.array(KITTI_TRAINING_PIXEL_MEAN)
+KITTI_SD = np.array(KITTI_TRAINING_PIXEL_SD)
 
 
 def pooled(images: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:

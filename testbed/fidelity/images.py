@@ -26,6 +26,11 @@ NEAR_CAR_PX = 40
 # edges and lane paint barely move): in R - G (colour noise) and in the grey (detail).
 ROAD_ROWS = 0.2
 HIGH_PASS_PX = 3.0
+# The whole KITTI object training set's pixel statistics, every pixel of its 7,481 image_2 PNGs,
+# R / G / B, as detection code that normalises KITTI inputs publishes them: the camera's tone
+# (simgen.camera.KEY) and colour balance (simgen.camera.BALANCE) were set from these.
+KITTI_TRAINING_PIXEL_MEAN = (93.83, 98.76, 95.88)
+KITTI_TRAINING_PIXEL_SD = (78.78, 80.13, 81.20)
 LEVELS = np.arange(256, dtype=np.uint8)  # of an 8-bit channel
 # The float32 gradient magnitude of each (|dI/dx|, |dI/dy|) pair of 8-bit pixels, at 256·dx + dy:
 # computed once, so the gradient histogram counts pairs instead of taking a square root a pixel.
@@ -69,6 +74,22 @@ def road_structure(img: np.ndarray, grey: np.ndarray) -> tuple[float, float]:
             robust_sd(high_pass(grey[top:].astype(np.float32))))
 
 
+def channel_sums(img: np.ndarray) -> np.ndarray:
+    """(7,) R, G, B sums, their sums of squares and the pixel count of a BGR image, from level
+    counts (exact in float64): what pooled means and SDs over every pixel of a dataset add up."""
+    counts = [levels(np.ascontiguousarray(img[..., c])) for c in (2, 1, 0)]
+    level = LEVELS.astype(np.float64)
+    return np.array([*(level @ n for n in counts), *(level ** 2 @ n for n in counts),
+                     img.shape[0] * img.shape[1]], np.float64)
+
+
+def pooled_channels(sums: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(R, G, B means, their SDs) over every pixel of the frames whose channel_sums are `sums`."""
+    total = np.asarray(sums, np.float64).reshape(-1, 7).sum(axis=0)
+    mean = total[:3] / total[6]
+    return mean, np.sqrt(total[3:6] / total[6] - mean ** 2)
+
+
 def image_stats(acc: Acc, img: np.ndarray, nbytes: int) -> np.ndarray:
     """The whole image's statistics; returns its grey image (cv2's BGR2GRAY). Means and
     histograms of a channel come from its level counts: a sum of 8-bit levels is exact in
@@ -87,6 +108,7 @@ def image_stats(acc: Acc, img: np.ndarray, nbytes: int) -> np.ndarray:
     acc.put("images.mean_abs_dx", dx.mean())
     acc.put("images.flat_share", np.count_nonzero(dx < FLAT) / dx.size)
     acc.put("images.edge_density", np.count_nonzero(cv2.Canny(grey, *CANNY)) / grey.size)
+    acc.row("images.channel_sums", channel_sums(img))
     colour_noise, detail = road_structure(img, grey)
     acc.put("images.road_colour_noise", colour_noise)
     acc.put("images.road_detail", detail)

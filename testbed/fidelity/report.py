@@ -14,7 +14,8 @@ from kitti.io import atomic_write_text
 
 from .bootstrap import LEVEL, SEED
 from .compare import Comparison, Row
-from .images import CANNY, HIGH_PASS_PX, NEAR_CAR_PX, ROAD_ROWS
+from .images import (CANNY, HIGH_PASS_PX, KITTI_TRAINING_PIXEL_MEAN, KITTI_TRAINING_PIXEL_SD, NEAR_CAR_PX,
+                     ROAD_ROWS, pooled_channels)
 from .labels import CLASSES, KITTI_TRAINING_FRAMES, KITTI_TRAINING_LABELS
 from .lidar import FAR_M, GROUND_M, NEAR_M
 from .stats import DatasetStats
@@ -117,6 +118,11 @@ def to_json(comp: Comparison) -> dict:
                                 for n, d in sides.items()}} for key in comp.sim.hists},
         "rings": {k: {n: _per_ring(d, f"lidar.ring_{k}") for n, d in sides.items()}
                   for k in ("returns", "elevation_deg")},
+        "pixels_by_channel": {
+            **{n: None if (v := _pixels(d)) is None else
+               {"mean": [_num(x) for x in v[0]], "sd": [_num(x) for x in v[1]]} for n, d in sides.items()},
+            "kitti_training_set": {"mean": list(KITTI_TRAINING_PIXEL_MEAN),
+                                   "sd": list(KITTI_TRAINING_PIXEL_SD)}},
         "objects_per_frame_by_class": {
             **{n: None if (v := _per_frame_by_class(d)) is None else dict(zip(CLASSES, map(_num, v)))
                for n, d in sides.items()},
@@ -167,9 +173,29 @@ def _group(comp: Comparison, group: str, title: str, folder: str) -> list[str]:
                 f"and {_fmt(100 * share['real'])} % of real frames (the rest by elevation k-means).", ""]
     rows = [r for r in comp.rows if r.key.startswith(group + ".")]
     out += _table(rows)
+    if group == "images":
+        out += [""] + _pixel_table(comp)
     if group == "labels":
         out += [""] + _class_table(comp)
     return out + ["", f"![{group}]({group}.png)", ""]
+
+
+def _pixels(d: DatasetStats) -> tuple[np.ndarray, np.ndarray] | None:
+    rows = d.rows.get("images.channel_sums")
+    return pooled_channels(rows) if rows is not None and len(rows) else None
+
+
+def _pixel_table(comp: Comparison) -> list[str]:
+    """Channel means and SDs over every pixel of every frame, beside the whole KITTI training
+    set's (the figures the camera's tone and colour balance were set from)."""
+    sides = [_pixels(comp.sim), _pixels(comp.real), (KITTI_TRAINING_PIXEL_MEAN, KITTI_TRAINING_PIXEL_SD)]
+    out = ["Every pixel of every frame, R / G / B, beside the whole KITTI object training set's "
+           f"({KITTI_TRAINING_FRAMES:,} images):", "",
+           "| over every pixel | sim | real | KITTI training set |", "|---|---:|---:|---:|"]
+    for k, name in enumerate(("channel means", "channel SDs")):
+        cells = ["n/a" if v is None else " / ".join(f"{x:.1f}" for x in v[k]) for v in sides]
+        out.append(f"| {name} | {' | '.join(cells)} |")
+    return out
 
 
 def _per_frame_by_class(d: DatasetStats) -> np.ndarray | None:

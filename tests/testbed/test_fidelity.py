@@ -116,6 +116,12 @@ def test_report_numbers_match_a_hand_computation_on_one_real_frame(real_root, tm
         assert got[key]["real"] == pytest.approx(value, rel=rtol), key
         assert got[key]["rel_diff"] == 0 and got[key]["verdict"] == "pass"
     assert got["labels.proj_gap_px"]["real"] == pytest.approx(9.56, abs=0.01)  # a tight pedestrian box
+    # every pixel's channel means and SDs (numpy's own; fidelity.json keeps 6 significant digits)
+    pixels = json.loads((tmp_path / "fidelity.json").read_text())["pixels_by_channel"]
+    flat = rgb.reshape(-1, 3)
+    assert pixels["real"]["mean"] == pytest.approx(flat.mean(axis=0), rel=1e-5)
+    assert pixels["real"]["sd"] == pytest.approx(flat.std(axis=0), rel=1e-5)
+    assert pixels["kitti_training_set"]["mean"] == [93.83, 98.76, 95.88]
     # the frame holds one Pedestrian and no DontCare region; KITTI's training set 28,742 Cars and
     # 4,487 Pedestrians in 7,481 frames
     by_class = json.loads((tmp_path / "fidelity.json").read_text())["objects_per_frame_by_class"]
@@ -124,6 +130,7 @@ def test_report_numbers_match_a_hand_computation_on_one_real_frame(real_root, tm
     report = (tmp_path / "report.md").read_text()
     assert "| Pedestrian | 1 | 1 | 0.5998 |" in report and "| Car | 0 | 0 | 3.842 |" in report
     assert "| DontCare regions | 0 | 0 | 1.51 |" in report
+    assert "| channel means | 79.3 / 93.8 / 98.4 | 79.3 / 93.8 / 98.4 | 93.8 / 98.8 / 95.9 |" in report
 
 
 def test_sim_against_real_writes_every_number_and_the_same_bytes_twice(sim_vs_real, tmp_path):
