@@ -258,6 +258,19 @@ def wheel(x, y, r, width, sections=14, rx=None) -> Shape:
     return _cylinder_y(x, y, r, r if rx is None else rx, r, width, sections)
 
 
+def spoked_wheel(x, y, r, width, thickness, sections=16) -> list[Shape]:
+    """A bicycle wheel as the camera and the LiDAR see it, standing on z = 0 at (x, y), axis along
+    y: its tyre and rim, a ring `thickness` deep inside radius r, as `sections` convex segments
+    (a solid disc hides what lies behind the spokes; an actor's parts must each be convex)."""
+    a = 2.0 * np.pi * np.arange(sections + 1) / sections
+    out = []
+    for a0, a1 in zip(a[:-1], a[1:]):
+        ring = [(x + rr * np.cos(t), r + rr * np.sin(t)) for rr, t in
+                ((r - thickness, a0), (r, a0), (r, a1), (r - thickness, a1))]
+        out.append(hexahedron([(px, yy, pz) for yy in (y - width / 2, y + width / 2) for px, pz in ring]))
+    return out
+
+
 def rim(x, face, r, out, sections=8, rx=None) -> Shape:
     """The rim of a tyre of radius r standing at x, on its outer face (at y = face, outward sign
     `out`): RIM_SHARE of the tyre's radius, standing RIM_PROUD proud of the face so it reads."""
@@ -632,13 +645,13 @@ def _pedestrian(rng, c: Material) -> list[Part]:
     return _person(rng, clothes, skin, stride=rng.uniform(0.1, 0.5), lean=rng.uniform(0, 0.03))
 
 
-def _cyclist(rng, c: Material) -> list[Part]:
-    tone = tuple(float(v) for v in _SKIN[rng.integers(len(_SKIN))])
-    skin = Material("skin", tone, skin_reflectivity(tone))
-    clothes = Material("clothes", c.color, textile_reflectivity(c.color))
+def bicycle() -> list[Part]:
+    """A bicycle in its rider's unit frame (x forward, wheels on z = 0, the rider's height 1):
+    two wheels, the frame's tubes and the handlebar. Ridden (a cyclist) or parked
+    (simgen.scenery's cycle stands), scaled to its owner's size by fit_parts."""
     r = 0.19  # wheel radius relative to the rider's height
     xf, xb = 0.48, -0.48
-    parts = [Part(wheel(x, 0.0, r, 0.03, sections=16), TYRE) for x in (xf, xb)]
+    parts = [Part(m, TYRE) for x in (xf, xb) for m in spoked_wheel(x, 0.0, r, 0.03, 0.025)]
     crank = np.array([0.0, 0.0, 0.16])
     seat = np.array([-0.12, 0.0, 0.55])
     bar = np.array([0.40, 0.0, 0.62])
@@ -646,6 +659,14 @@ def _cyclist(rng, c: Material) -> list[Part]:
                  (crank, bar), (bar, np.array([xf, 0, r])), (seat, bar)):
         parts.append(Part(_limb(a, b, 0.015), FRAME))
     parts.append(Part(_box(0.38, 0.42, -0.22, 0.22, 0.60, 0.64), FRAME))
+    return parts
+
+
+def _cyclist(rng, c: Material) -> list[Part]:
+    tone = tuple(float(v) for v in _SKIN[rng.integers(len(_SKIN))])
+    skin = Material("skin", tone, skin_reflectivity(tone))
+    clothes = Material("clothes", c.color, textile_reflectivity(c.color))
+    parts = bicycle()
     parts += _person(rng, clothes, skin, 0.0, lean=rng.uniform(0.0, 0.08), sitting_on_bike=True)
     return parts
 

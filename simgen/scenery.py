@@ -7,6 +7,7 @@ renderer and the LiDAR see few large meshes. The pieces are mostly plain vertice
 
 from __future__ import annotations
 
+import functools
 import itertools
 from dataclasses import dataclass
 
@@ -18,10 +19,10 @@ import trimesh
 from .materials import (ASPHALT, BARK, CONCRETE, FACADE_REFLECTIVITY, FENCE, FOLIAGE,  # noqa: F401
                         FOREST_FLOOR, MARKING, METAL, SAND, SIDEWALK, SIGN_BLUE, SIGN_RED, SIGN_WHITE,
                         SIGN_YELLOW, TRIM, VERGE, paint_material, signal_lens)
-from .meshes import Shape, box, extrude
+from .meshes import Shape, bicycle, box, extrude
 from .relief import drape_parts
 from .road import RoadLayout
-from .world import Material, Part
+from .world import Material, Part, fit_parts
 
 _FACADES = [(0.55, 0.50, 0.42), (0.40, 0.30, 0.25), (0.60, 0.58, 0.55), (0.35, 0.36, 0.40),
             (0.65, 0.55, 0.40), (0.30, 0.25, 0.22)]
@@ -837,6 +838,14 @@ BOLLARD_R, BOLLARD_H, BOLLARD_PITCH, BOLLARD_ROW = 0.045, 0.95, 1.4, (3, 7)
 # at least 2.5 m, RASt 06's standard width. Groups per side: no survey found, 0.3 per 100 m.
 STAND_GROUPS_PER_100M = 0.3
 STAND_R, STAND_H, STAND_L, STAND_PITCH, STAND_GROUP, STAND_SIDEWALK = 0.024, 0.8, 1.0, 1.2, (2, 7), 2.5
+# Parked bicycles: each side of a stand holds one with this probability (a judgement: no survey of
+# how full KITTI's stands were), alongside the bar (its frame BIKE_GAP from the bar's axis), front
+# wheel either way: the cyclist's bicycle (simgen.meshes.bicycle) scaled evenly to the length of
+# KITTI's Cyclist labels (1.76 m, simgen.meshes.SIZE_STATS). KITTI's Cyclist is a rider on a
+# bicycle; it labels no parked one, and neither does the generator: they are scenery, for the
+# camera and the LiDAR alike.
+STAND_OCCUPANCY = 0.5
+BIKE_L, BIKE_GAP = 1.76, 0.12
 
 
 def _posed(m: Shape | trimesh.Trimesh, T: np.ndarray) -> Shape:
@@ -877,18 +886,40 @@ class _Furnisher:
             corner: bool = False) -> bool:
         """Adds the piece unless it stands in a keep-clear area (at a corner: a sight line only),
         on an obstacle lower than its top, or on a piece placed before."""
-        v = np.concatenate([m.vertices for _, m in parts])
-        fp, top = shapely.convex_hull(shapely.MultiPoint(v[:, :2])), float(v[:, 2].max())
-        if any(fp.intersects(c) for c in (self.out.sight if corner else self.out.clear)):
+        fp, top = _extent(parts)
+        if not self._free(fp, top, self.out.sight if corner else self.out.clear, self.placed):
+            return False
+        self._put(parts, obstacles)
+        self.placed.append(fp)
+        return True
+
+    def add_beside(self, parts: list[tuple[Material, Shape]], margin: float) -> bool:
+        """Adds a piece that belongs to the one placed last (a bicycle at its stand): tested as
+        `add` does, but not against that piece; its footprint, grown by `margin`, becomes an
+        obstacle and joins that piece's."""
+        fp, top = _extent(parts)
+        if not self._free(fp, top, self.out.clear, self.placed[:-1]):
+            return False
+        self._put(parts, [Obstacle(fp.buffer(margin))])
+        self.placed[-1] = self.placed[-1].union(fp)
+        return True
+
+    def _free(self, fp: shapely.Polygon, top: float, keep_clear: list, placed: list) -> bool:
+        if any(fp.intersects(c) for c in keep_clear):
             return False
         hits = self.tree.query(fp, predicate="intersects")
-        if np.any(self.bases[hits] < top) or any(fp.intersects(p) for p in self.placed):
-            return False
+        return not (np.any(self.bases[hits] < top) or any(fp.intersects(p) for p in placed))
+
+    def _put(self, parts: list[tuple[Material, Shape]], obstacles: list[Obstacle]) -> None:
         for mat, m in parts:
             self.out.add(mat, m)
         self.out.obstacles += obstacles
-        self.placed.append(fp)
-        return True
+
+
+def _extent(parts: list[tuple[Material, Shape]]) -> tuple[shapely.Polygon, float]:
+    """A piece's footprint (the convex hull of its vertices seen from above) and its top."""
+    v = np.concatenate([m.vertices for _, m in parts])
+    return shapely.convex_hull(shapely.MultiPoint(v[:, :2])), float(v[:, 2].max())
 
 
 def _sign(f: _Furnisher, side: int, s: float, kind: str) -> None:
@@ -962,8 +993,10 @@ def _bollards(f: _Furnisher, side: int, s: float, n: int) -> None:
     f.add(parts, [Obstacle(_footprint(m).buffer(0.1)) for _, m in parts[::2]])
 
 
-def _stands(f: _Furnisher, side: int, s: float, n: int) -> None:
-    """n cycle stands across the sidewalk from s: two legs and a top bar each."""
+def _stands(f: _Furnisher, side: int, s: float, n: int, bikes: np.random.Generator) -> None:
+    """n cycle stands across the sidewalk from s: two legs and a top bar each; then, where the
+    stands were placed, the bicycles parked at them (their own random stream: the furniture drawn
+    after them stays where it was)."""
     ch, r, h, half = f.road.curb_height, STAND_R, STAND_H, STAND_L / 2
     parts = []
     for k in range(n):
@@ -971,7 +1004,24 @@ def _stands(f: _Furnisher, side: int, s: float, n: int) -> None:
         for m in (box(-half, -half + 2 * r, -r, r, ch, ch + h), box(half - 2 * r, half, -r, r, ch, ch + h),
                   box(-half, half, -r, r, ch + h - 2 * r, ch + h)):
             parts.append((METAL, _posed(m, T)))
-    f.add(parts, [Obstacle(_footprint(m).buffer(0.1)) for _, m in parts])
+    parked = [(k, gap, yaw) for k in range(n) for gap in (-BIKE_GAP, BIKE_GAP)
+              if bikes.uniform() < STAND_OCCUPANCY
+              for yaw in [np.pi / 2 if bikes.uniform() < 0.5 else -np.pi / 2]]
+    if not f.add(parts, [Obstacle(_footprint(m).buffer(0.1)) for _, m in parts]):
+        return
+    for k, gap, yaw in parked:
+        T = f.pose(side, s + k * STAND_PITCH + gap, SIDE_CLEARANCE + BIKE_L / 2, yaw)
+        T[2, 3] += ch
+        f.add_beside([(p.material, _posed(p.mesh, T)) for p in _parked_bicycle()], 0.05)
+
+
+@functools.cache
+def _parked_bicycle() -> tuple[Part, ...]:
+    """A bicycle BIKE_L long, scaled evenly (round wheels), origin on the ground at its middle."""
+    parts = bicycle()
+    v = np.concatenate([np.asarray(p.mesh.vertices) for p in parts])
+    l, w, h = (v.max(axis=0) - v.min(axis=0)) * (BIKE_L / np.ptp(v[:, 0]))
+    return tuple(fit_parts(parts, h, w, l))
 
 
 def _furniture(road: RoadLayout, clutter: dict, seed: int, out: _Meshes) -> None:
@@ -981,6 +1031,7 @@ def _furniture(road: RoadLayout, clutter: dict, seed: int, out: _Meshes) -> None
     if scale <= 0:
         return
     rng = np.random.default_rng([seed, 4])
+    bikes = np.random.default_rng([seed, 5])
     f = _Furnisher(road, out)
     if road.cross_s is not None:
         _signals(f, rng)
@@ -994,7 +1045,7 @@ def _furniture(road: RoadLayout, clutter: dict, seed: int, out: _Meshes) -> None
             _bollards(f, side, s, int(rng.integers(*BOLLARD_ROW)))
         groups = rng.poisson(scale * STAND_GROUPS_PER_100M * length)
         for s in rng.uniform(road.s_min, road.s_max, groups if road.sidewalk_width >= STAND_SIDEWALK else 0):
-            _stands(f, side, s, int(rng.integers(*STAND_GROUP)))
+            _stands(f, side, s, int(rng.integers(*STAND_GROUP)), bikes)
 
 
 def _merged(meshes: list[Shape | trimesh.Trimesh]) -> trimesh.Trimesh:

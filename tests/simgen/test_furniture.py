@@ -9,11 +9,19 @@ import shapely
 
 from simgen.road import RoadLayout
 from simgen.sample import _footprint, sample_world
+from simgen.materials import TYRE
 from simgen.scenery import (
+    BIKE_GAP,
+    BIKE_L,
     SIDE_CLEARANCE,
     SIGN_LOWER_EDGE,
     SIGNS_PER_100M,
+    STAND_OCCUPANCY,
+    STAND_PITCH,
+    _Furnisher,
+    _Meshes,
     _outer,
+    _stands,
     build_scenery,
 )
 from simgen.spec import spec_from_dict
@@ -135,3 +143,38 @@ def test_scenery_parameters_from_before_the_furniture_build_none():
     for p, q in zip(build_scenery(old)[0], build_scenery(off)[0], strict=True):
         assert p.material == q.material and np.array_equal(p.mesh.vertices, q.mesh.vertices)
     assert "signal_lens" not in {p.material.name for p in build_scenery(old)[0]}
+
+
+def test_parked_bicycles_stand_at_their_stands_on_the_sidewalk_and_fill_about_half_the_places():
+    """Each stand has a place on either side of its bar; a bicycle (BIKE_L long, its wheels on the
+    sidewalk) takes one with probability STAND_OCCUPANCY, its frame BIKE_GAP from the bar's axis."""
+    layout = RoadLayout(curvature=0.0, lanes=1, lane_width=3.5, ego_lane=0, sidewalk_width=3.0,
+                        curb_height=0.15, parking=False, s_min=-50.0, s_max=150.0)
+    out = _Meshes([])
+    f = _Furnisher(layout, out)
+    rng = np.random.default_rng(11)
+    groups, n = 12, 5
+    for g in range(groups):
+        _stands(f, -1, 10.0 * g, n, rng)
+    tyres = out.by_mat.get(TYRE, [])  # a wheel is 16 segments of its ring
+    assert len(tyres) % 32 == 0
+    bikes = len(tyres) // 32
+    places = 2 * groups * n
+    # binomial: 120 places at p = 0.5 have an sd of 5.5 bicycles; 4 sd either way
+    assert abs(bikes - STAND_OCCUPANCY * places) <= 4 * np.sqrt(places * 0.25)
+    walk = shapely.Polygon(np.concatenate([layout.xy(np.array([-50.0, 150.0]), layout.right_curb),
+                                           layout.xy(np.array([150.0, -50.0]), layout.right_curb - 3.0)]))
+    bars_s = np.array([10.0 * g + k * STAND_PITCH for g in range(groups) for k in range(n)])
+    for segment in tyres:
+        v = np.asarray(segment.vertices)
+        assert v[:, 2].min() >= layout.curb_height - 1e-9  # above the sidewalk
+        assert shapely.MultiPoint(v[:, :2]).within(walk)
+        # beside a bar: on a straight road x is s; the wheel's mid-plane BIKE_GAP from a bar's axis
+        gaps = np.abs(v[:, 0].mean() - bars_s)
+        assert gaps.min() == pytest.approx(BIKE_GAP, abs=1e-9)
+    # across the sidewalk: the bicycles from SIDE_CLEARANCE to SIDE_CLEARANCE + BIKE_L behind the curb
+    zs = np.concatenate([np.asarray(w.vertices)[:, 2] for w in tyres])
+    assert zs.min() == pytest.approx(layout.curb_height, abs=1e-9)  # the wheels on the sidewalk
+    ys = np.concatenate([np.asarray(w.vertices)[:, 1] for w in tyres])
+    assert layout.right_curb - ys.max() == pytest.approx(SIDE_CLEARANCE, abs=1e-9)
+    assert layout.right_curb - ys.min() == pytest.approx(SIDE_CLEARANCE + BIKE_L, abs=1e-9)
