@@ -1004,9 +1004,11 @@ def _stands(f: _Furnisher, side: int, s: float, n: int, bikes: np.random.Generat
         for m in (box(-half, -half + 2 * r, -r, r, ch, ch + h), box(half - 2 * r, half, -r, r, ch, ch + h),
                   box(-half, half, -r, r, ch + h - 2 * r, ch + h)):
             parts.append((METAL, _posed(m, T)))
-    parked = [(k, gap, yaw) for k in range(n) for gap in (-BIKE_GAP, BIKE_GAP)
-              if bikes.uniform() < STAND_OCCUPANCY
-              for yaw in [np.pi / 2 if bikes.uniform() < 0.5 else -np.pi / 2]]
+    parked = []  # (stand, side of its bar, heading) of each bicycle
+    for k in range(n):
+        for gap in (-BIKE_GAP, BIKE_GAP):
+            if bikes.uniform() < STAND_OCCUPANCY:
+                parked.append((k, gap, np.pi / 2 if bikes.uniform() < 0.5 else -np.pi / 2))
     if not f.add(parts, [Obstacle(_footprint(m).buffer(0.1)) for _, m in parts]):
         return
     for k, gap, yaw in parked:
@@ -1025,8 +1027,9 @@ def _parked_bicycle() -> tuple[Part, ...]:
 
 
 def _furniture(road: RoadLayout, clutter: dict, seed: int, out: _Meshes) -> None:
-    """Signals at the intersection, then signs, bins, bollards and cycle stands along both
-    sidewalks, Poisson in number at the densities above times `clutter.furniture`."""
+    """Signals at the intersection, then signs, bins, bollards and cycle stands (with the bicycles
+    parked at them) along both sidewalks, Poisson in number at the densities above times
+    `clutter.furniture`."""
     scale = float(clutter.get("furniture", 0.0))  # scenery parameters from before it: none
     if scale <= 0:
         return

@@ -1,5 +1,5 @@
-"""Street furniture (clutter.furniture): where signs, signals, bins, bollards and cycle stands may
-stand, checked on the footprints of sampled worlds."""
+"""Street furniture (clutter.furniture): where signs, signals, bins, bollards, cycle stands and
+the bicycles parked at them may stand, checked on the footprints of sampled worlds."""
 
 from __future__ import annotations
 
