@@ -42,6 +42,8 @@ def world_to_meta(world: World, spec: dict | None = None, truths: list[ActorTrut
     for a in world.actors:
         row = {"id": a.id, "class": a.cls, "mesh": a.recipe, "pose": a.pose.tolist(),
                "velocity": np.asarray(a.velocity, float).tolist(), "yaw_rate": a.yaw_rate}
+        if a.stop_lamps:  # only where lit: worlds without braking keep their meta
+            row["stop_lamps"] = True
         t = by_id.get(a.id)
         if t is not None:
             row.update({"box7": t.box7.tolist(), "in_view": t.in_view,
@@ -68,7 +70,8 @@ def world_from_meta(meta: dict) -> World:
         raise ValueError(f"not a {FORMAT} file (format: {meta.get('format')!r})")
     static, _ = build_scenery(meta["scenery"])
     actors = [Actor(a["id"], a["class"], build_actor_parts(a["mesh"]), np.array(a["pose"]),
-                    velocity=np.array(a["velocity"]), yaw_rate=a["yaw_rate"], recipe=a["mesh"])
+                    velocity=np.array(a["velocity"]), yaw_rate=a["yaw_rate"], recipe=a["mesh"],
+                    stop_lamps=bool(a.get("stop_lamps", False)))
               for a in meta["actors"]]
     return World(actors=actors, static=static, weather=Weather(**meta["weather"]),
                  lidar_pose=np.array(meta["lidar_pose"]), ego_velocity=np.array(meta["ego_velocity"]),

@@ -68,6 +68,11 @@ SKY_ZENITH, SKY_HORIZON, CLOUD = (0.30, 0.42, 0.75), (0.62, 0.68, 0.78), (1.45, 
 # Schlick's approximation at other angles; the sun's highlight on them, Blinn-Phong.
 GLOSSY = {"paint", "glass", "headlight", "taillight"}
 F0 = 0.04
+# Stop lamps lit by day (Actor.stop_lamps): ECE R7 asks 60 to 185 cd of a stop lamp; their geometric
+# mean, 105 cd, over a car's tail-lamp face (0.28 x 0.13 m, simgen.meshes) is about 2,900 cd/m2.
+# On this look's scale sunlit white, about 30,000 cd/m2 (SKY_ZENITH's note), is 1.5, so one unit is
+# about 20,000 cd/m2: 0.145 in luminance, all of it in the red primary (luminance 0.2126 R).
+STOP_LAMP = (2900.0 / 20000.0 / 0.2126, 0.0, 0.0)
 HIGHLIGHT_EXPONENT = 300.0
 GROUND_RADIANCE = 0.08  # what a glossy face mirrors below the horizon (dark ground)
 
@@ -241,10 +246,11 @@ class _Shader:
 
     def colors(self, parts: list[Part], tris: np.ndarray, normals: np.ndarray, moving: bool,
                albedo_gain: np.ndarray | None = None,
-               corner_normals: np.ndarray | None = None) -> np.ndarray:
+               corner_normals: np.ndarray | None = None, glow: np.ndarray | None = None) -> np.ndarray:
         """(F, 4) RGBA of all faces of the parts (world-frame triangles and normals), in
         _triangles order; with `corner_normals` (F, 3, 3) the lit look shades each corner of
-        each face with its own normal, (F, 3, 4), and the rasteriser blends them across the face."""
+        each face with its own normal, (F, 3, 4), and the rasteriser blends them across the face.
+        `glow` (P, 3): the linear radiance each part emits (lit look only; lit stop lamps)."""
         counts = [len(p.mesh.faces) for p in parts]
         if self.mode == "thermal":
             rgb = np.repeat(np.array([_thermal(p, moving) for p in parts]), counts, axis=0)
@@ -255,17 +261,20 @@ class _Shader:
         if self.mode == "pbr":
             return np.c_[albedo, np.ones(len(albedo))]
         glossy = np.repeat([p.material.name in GLOSSY for p in parts], counts)
+        emitted = None if glow is None else np.repeat(glow, counts, axis=0)
         if corner_normals is None:
             centres = (tris[:, 0] + tris[:, 1] + tris[:, 2]) / 3  # the mean over corners, in its order
-            return self._lit(albedo, glossy, centres, normals)
+            return self._lit(albedo, glossy, centres, normals, emitted)
         rgba = self._lit(np.repeat(albedo, 3, axis=0), np.repeat(glossy, 3), tris.reshape(-1, 3),
-                         corner_normals.reshape(-1, 3))
+                         corner_normals.reshape(-1, 3),
+                         None if emitted is None else np.repeat(emitted, 3, axis=0))
         return rgba.reshape(-1, 3, 4)
 
     def _lit(self, albedo: np.ndarray, glossy: np.ndarray, points: np.ndarray,
-             normals: np.ndarray) -> np.ndarray:
+             normals: np.ndarray, emitted: np.ndarray | None = None) -> np.ndarray:
         """(N, 4) gamma-encoded RGB and the share of light that is not direct sun, of N surface
-        points of the given albedo and normal."""
+        points of the given albedo and normal, and (N, 3) emitted radiance if any: a shadow
+        never dims what a point emits."""
         cos = np.clip(normals @ self.sun, 0.0, 1.0)
         sky = self.ambient * (0.7 + 0.3 * normals[:, 2])
         lin, share = np.empty((len(cos), 3)), []
@@ -276,6 +285,13 @@ class _Shader:
         shiny = np.flatnonzero(glossy)
         if len(shiny):
             lin[shiny] += self._mirror(np.take(points, shiny, axis=0), np.take(normals, shiny, axis=0))
+        lamps = np.zeros(0, int) if emitted is None else np.flatnonzero(emitted.any(axis=1))
+        if len(lamps):  # each channel's emitted part counts as light that is not direct sun
+            e, lit = emitted[lamps], lin[lamps]
+            for c in range(3):
+                total = np.maximum(lit[:, c] + e[:, c], 1e-9)
+                share[c][lamps] = (share[c][lamps] * lit[:, c] + e[:, c]) / total
+            lin[lamps] += e
         rest = (share[0] + share[1] + share[2]) / 3  # the mean over channels, in its order
         out = np.empty((len(lin), 4))
         out[:, :3] = np.clip(lin / self.headroom, 0.0, 1.0) ** (1 / 2.2)
@@ -313,14 +329,14 @@ def _thermal(part: Part, moving: bool) -> tuple[float, float, float]:
 
 
 def _actor_meshes(bodies: list[tuple[list[Part], np.ndarray, bool]], shader: _Shader,
-                  rng: np.random.Generator | None = None
+                  rng: np.random.Generator | None = None, glow: np.ndarray | None = None
                   ) -> tuple[list[pyrender.Mesh], pyrender.Node | None, Occluders, Reach]:
     """One flat-shaded mesh per actor (parts in the actor frame), all actors shaded in one
     vectorised pass in the world frame; with `rng` (the lit look with textures) also all actors
     in one node for the colour pass, glass, paint and plates wearing their textures
     (_texture_coordinates; one primitive per texture, where one per actor and texture would cost
     pyrender a draw call each); their triangles (world frame) as shadow casters; and each body's
-    box, where it can hide the sky."""
+    box, where it can hide the sky. `glow` (P, 3): what each part emits in the lit look."""
     if not bodies:
         return ([], None, Occluders(np.zeros((0, 3, 3), np.float32), np.zeros(0, np.float32)),
                 Reach(np.zeros((0, 4, 4)), np.zeros((0, 3)), np.zeros((0, 3))))
@@ -341,7 +357,7 @@ def _actor_meshes(bodies: list[tuple[list[Part], np.ndarray, bool]], shader: _Sh
         bent = _bent_normals([len(p.mesh.faces) for p in parts], own_tris, own_n)
         bent = np.concatenate([b @ pose[:3, :3].T
                                for b, (_, pose, _) in zip(np.split(bent, ends), bodies)])
-        rgba = shader.colors(parts, world_tris, world_n, False, corner_normals=bent)
+        rgba = shader.colors(parts, world_tris, world_n, False, corner_normals=bent, glow=glow)
     else:
         rgba = shader.colors(parts, world_tris, world_n, False)
     world_v = np.concatenate([v @ pose[:3, :3].T + pose[:3, 3]
@@ -572,6 +588,16 @@ class BuiltScene:
             self.colour_actors.is_visible = not on
 
 
+def _stop_lamp_glow(actors: list, bodies: list[tuple[list[Part], np.ndarray, bool]]
+                    ) -> np.ndarray | None:
+    """(P, 3) STOP_LAMP on the tail lamps of actors with their stop lamps lit, 0 on every other
+    part of `bodies` (in their order); None where no lamp is lit."""
+    if not any(a.stop_lamps for a in actors):
+        return None
+    return np.array([STOP_LAMP if a.stop_lamps and p.material.name == "taillight" else (0.0, 0.0, 0.0)
+                     for a, (parts, _, _) in zip(actors, bodies) for p in parts])
+
+
 def build_scene(world: World) -> BuiltScene:
     """The pyrender scene of a world at t = 0 and what its passes need (BuiltScene)."""
     light = world.light
@@ -599,7 +625,8 @@ def build_scene(world: World) -> BuiltScene:
                   if lit and p.material.name in EMISSIVE]
     textured = shader.mode == "lit" and world.appearance.textures
     meshes, merged, actor_casters, reach = _actor_meshes(
-        bodies, shader, factor_rng(world.seed, world.frame_index, "actor_textures") if textured else None)
+        bodies, shader, factor_rng(world.seed, world.frame_index, "actor_textures") if textured else None,
+        _stop_lamp_glow(world.actors, bodies) if shader.mode == "lit" else None)
     for actor, mesh in zip(world.actors, meshes):
         seg[scene.add(mesh, pose=actor.pose)] = _seg_code(actor.id)
     if merged is not None:  # not in `seg`, so the instance pass never draws it

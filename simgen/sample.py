@@ -19,7 +19,7 @@ from .relief import drape_actor
 from .rigs import KITTI_LIDAR_HEIGHT, CameraRig, gantry_rig, onboard_rig, orbit_rig
 from .road import RoadLayout, VerticalProfile
 from .scenery import Frontage, Obstacle, build_scenery, plan_frontage
-from .spec import SceneSpec
+from .spec import VEHICLE_CLASSES, SceneSpec
 from .usermesh import user_recipe
 from .world import Actor, Appearance, CameraResponse, Light, Weather, World
 
@@ -332,6 +332,16 @@ def _place_actors(spec: SceneSpec, v: dict, road: RoadLayout, obstacles: list[Ob
     return traffic.actors
 
 
+def _brake(actors: list[Actor], share: float, rng: np.random.Generator) -> None:
+    """Lights the stop lamps of each moving vehicle with probability `share` (its own stream:
+    the worlds of specs without braking keep every draw). Parked vehicles stay dark."""
+    if not share > 0:
+        return
+    for actor in actors:
+        if actor.cls in VEHICLE_CLASSES and float(np.linalg.norm(actor.velocity)) > 0.5:
+            actor.stop_lamps = bool(rng.uniform() < share)
+
+
 def sample_world(spec: SceneSpec, seed: int, frame_index: int) -> World:
     """The world of one frame: a pure function of the spec, the seed and the frame index."""
     v = _values(spec, seed, frame_index)
@@ -340,6 +350,7 @@ def sample_world(spec: SceneSpec, seed: int, frame_index: int) -> World:
     static, obstacles = build_scenery(scenery)
     actors = _place_actors(spec, v, road, obstacles, factor_rng(seed, frame_index, "actors"),
                            plan_frontage(scenery))
+    _brake(actors, float(v["traffic.braking"]), factor_rng(seed, frame_index, "braking"))
     rig = _make_rig(spec, v, road, actors)
     ego_velocity = np.array([float(v["rig.ego_speed"]), 0.0, 0.0]) if rig.kind == "onboard" else np.zeros(3)
     light = Light(v["light.time"], float(v["light.sun_intensity"]),

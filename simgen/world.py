@@ -141,6 +141,7 @@ class Actor:
     yaw_rate: float = 0.0  # rad/s about world z
     # How the parts were built (simgen.meshes.build_actor_parts), so meta/ can rebuild them.
     recipe: dict = field(default_factory=dict)
+    stop_lamps: bool = False  # lit: the vehicle brakes (simgen.render draws them by day)
 
     def pose_at(self, t: float | np.ndarray) -> np.ndarray:
         """World-from-actor pose(s) at time t under constant velocity and yaw rate.
