@@ -89,8 +89,8 @@ class TrafficSpec(Strict):
     headway_s: factor(float, 0.0, 10.0) = 2.0
     car_park_occupancy: factor(float, 0.0, 1.0) = 0.5  # share of car-park stalls taken (frontage)
     speed: factor(float, 0.0, 40.0) = 12.0  # m/s of moving traffic
-    # The share of moving vehicles whose stop lamps are lit (simgen.sample._brake): braking, or
-    # held on the brake in a queue. None by default: how many of KITTI's cars brake is not published.
+    # The share of the vehicles moving faster than 0.5 m/s whose stop lamps are lit, as they brake
+    # (simgen.sample._brake). None by default: how many of KITTI's cars brake is not published.
     braking: factor(float, 0.0, 1.0) = 0.0
     heading_sd_deg: factor(float, 0.0, 30.0) = 2.0
     lateral_sd: factor(float, 0.0, 1.0) = 0.2
