@@ -617,10 +617,9 @@ def build_scene(world: World) -> BuiltScene:
     lamps: list[tuple[Part, np.ndarray, tuple]] = []
     bodies = []
     for actor in world.actors:
-        moving = float(np.linalg.norm(actor.velocity)) > 0.5
-        lit = shader.mode == "pbr" and moving  # night: moving vehicles' lamps glow; parked stay off
+        lit = shader.mode == "pbr" and actor.moving  # night: moving vehicles' lamps glow; parked stay off
         bodies.append(([p for p in actor.parts if not (lit and p.material.name in EMISSIVE)],
-                       actor.pose, moving))
+                       actor.pose, actor.moving))
         lamps += [(p, actor.pose, _seg_code(actor.id)) for p in actor.parts
                   if lit and p.material.name in EMISSIVE]
     textured = shader.mode == "lit" and world.appearance.textures

@@ -338,7 +338,7 @@ def _brake(actors: list[Actor], share: float, rng: np.random.Generator) -> None:
     if not share > 0:
         return
     for actor in actors:
-        if actor.cls in VEHICLE_CLASSES and float(np.linalg.norm(actor.velocity)) > 0.5:
+        if actor.cls in VEHICLE_CLASSES and actor.moving:
             actor.stop_lamps = bool(rng.uniform() < share)
 
 

@@ -143,6 +143,11 @@ class Actor:
     recipe: dict = field(default_factory=dict)
     stop_lamps: bool = False  # lit: the vehicle brakes (simgen.render draws them by day)
 
+    @property
+    def moving(self) -> bool:
+        """Faster than 0.5 m/s: a vehicle whose lamps glow at night and that may brake by day."""
+        return float(np.linalg.norm(self.velocity)) > 0.5
+
     def pose_at(self, t: float | np.ndarray) -> np.ndarray:
         """World-from-actor pose(s) at time t under constant velocity and yaw rate.
 
