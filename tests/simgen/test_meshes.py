@@ -159,15 +159,81 @@ def test_the_rear_window_has_body_coloured_pillars_on_its_plane():
             assert np.abs(low[:, 1]).max() == pytest.approx(width / 2, abs=0.01)
 
 
-def _seen_along_x(parts, origins: np.ndarray, sgn: float) -> np.ndarray:
-    """The material name each ray from `origins` along -sgn x meets first ("" for none)."""
+def _seen(parts, origins: np.ndarray, dirs: np.ndarray) -> np.ndarray:
+    """The material name each ray meets first ("" for none)."""
     from simgen.facets import shared
     from simgen.shadows import embree_scene
 
     names = np.repeat([p.material.name for p in parts] + [""], [len(p.mesh.faces) for p in parts] + [1])
-    hits = embree_scene(*shared(parts)).run(origins.astype(np.float32),
-                                            np.tile(np.float32([-sgn, 0.0, 0.0]), (len(origins), 1)))
-    return names[hits]  # -1: none
+    return names[embree_scene(*shared(parts)).run(origins.astype(np.float32), dirs.astype(np.float32))]
+
+
+def _seen_along_x(parts, origins: np.ndarray, sgn: float) -> np.ndarray:
+    """The material name each ray from `origins` along -sgn x meets first ("" for none)."""
+    return _seen(parts, origins, np.tile([-sgn, 0.0, 0.0], (len(origins), 1)))
+
+
+def _first_hits(parts, origins: np.ndarray, dirs: np.ndarray) -> np.ndarray:
+    """(N, 3) the point each ray meets first (NaN for none): on its triangle's plane."""
+    from simgen.facets import shared
+    from simgen.shadows import embree_scene
+
+    v, f = shared(parts)
+    prim = embree_scene(v, f).run(origins.astype(np.float32), dirs.astype(np.float32))
+    tri = v[f[np.maximum(prim, 0)]]
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    t = np.einsum("ij,ij->i", n, tri[:, 0] - origins) / np.einsum("ij,ij->i", n, dirs)
+    return np.where((prim >= 0)[:, None], origins + t[:, None] * dirs, np.nan)
+
+
+def test_the_rear_floor_rises_to_the_departure_plane_and_shows_the_tyres():
+    """The floor rises from the rear axle to the back end, where it stands at the height of the
+    plane tangent to the rear tyres at the drawn departure angle (DEPARTURE_DEG): no part but the
+    wheels reaches below the plane, the rear valance's lower edge stands 3 cm above the floor's
+    end, a LiDAR at KITTI's 1.73 m, 8 m behind the car, finds nothing on the car's last 0.25 m
+    below that (what benchmarks/car_rear.py reads in real scans), and a camera at 1.65 m sees both
+    rear tyres' contact with the road (where the plane rises above the sill)."""
+    from simgen.meshes import DEPARTURE_DEG
+
+    rng = np.random.default_rng(8)
+    for _ in range(20):
+        recipe = sample_recipe("Car", rng)
+        h, _, l = recipe["dims"]
+        k = _car_layout(np.random.default_rng(recipe["seed"]), recipe["dims"])
+        lo, hi = DEPARTURE_DEG["suv" if k.style == "suv" else "car"]
+        assert lo <= np.degrees(k.departure) <= hi
+        slope, axle = np.tan(k.departure), k.axles[1]
+        # The plane touches the tyre (the axle lies r from it, below the axle): at the back end
+        # it stands r + d tan - r / cos up, d the overhang; the floor takes it or the sill.
+        at_back = k.r + (axle - k.back) * slope - k.r / np.cos(k.departure)
+        assert k.tail == pytest.approx(max(k.sill, at_back), abs=1e-12)
+        if k.tail == k.sill:  # a short overhang: the plane stays under the sill, and so does the body
+            continue
+        parts = build_actor_parts(recipe)
+        body = np.concatenate([p.mesh.vertices for p in parts if p.material.name not in ("tyre", "rim")])
+        behind = body[body[:, 0] < axle - k.r * np.sin(k.departure)]  # behind the tangent line
+        plane = at_back - (behind[:, 0] - k.back) * slope
+        assert np.all(behind[:, 2] >= plane - 0.005)  # fit_parts rescales by a few millimetres
+        rise = (k.tail - k.sill) / (axle - k.back)  # the floor: from the axle at the sill's height
+        floor = np.minimum(k.sill + (axle - body[:, 0]) * rise, k.tail)
+        assert np.all(body[body[:, 0] < axle, 2] >= floor[body[:, 0] < axle] - 0.005)
+        assert body[body[:, 0] < -l / 2 + 0.1, 2].min() == pytest.approx(k.tail, abs=0.005)
+        rear_trim = [p.mesh.bounds for p in parts
+                     if p.material.name == "trim" and p.mesh.bounds[0][0] < -l / 2 + 0.01]
+        assert min(b[0][2] for b in rear_trim) == pytest.approx(k.tail + 0.03, abs=0.005)
+        z = np.arange(0.0, 1.0, 0.002)  # heights at the back end, centre line: a column of beams
+        lidar = np.array([-l / 2 - 8.0, 0.0, 1.73])
+        d = np.c_[np.full_like(z, 8.0), np.zeros_like(z), z - 1.73]
+        hits = _first_hits(parts, np.tile(lidar, (len(z), 1)), d / np.linalg.norm(d, axis=1, keepdims=True))
+        last = hits[hits[:, 0] < -l / 2 + 0.25]
+        if rise < (1.73 - k.tail) / 8.0:  # a floor rising less steeply than the beams descend
+            assert len(last) and last[:, 2].min() >= k.tail - 0.005
+        for side in (-1.0, 1.0):
+            y = side * (k.body - 0.10)  # the tyre's middle
+            target = np.array([axle + 0.05, y, 0.01])  # just behind the contact, 1 cm up
+            eye = np.array([-l / 2 - 8.0, 0.0, 1.65])
+            d = (target - eye) / np.linalg.norm(target - eye)
+            assert _seen(parts, eye[None], d[None])[0] == "tyre"
 
 
 def test_bumpers_show_the_body_colour_above_a_thin_black_valance():
@@ -186,7 +252,9 @@ def test_bumpers_show_the_body_colour_above_a_thin_black_valance():
             origins = np.c_[np.full_like(z, sgn * (l / 2 + 1.0)), np.full_like(z, 0.3), z]
             seen = _seen_along_x(parts, origins, sgn)
             lowest = np.flatnonzero(seen == "trim")[0]
-            assert np.sum(seen[:lowest] != "") <= 20  # under it, at most the body's 4 cm bottom edge
+            # under it, at most the body's 4 cm bottom edge; behind, the underside rising to it
+            rise = 0.0 if sgn > 0 else _car_layout(np.random.default_rng(recipe["seed"]), recipe["dims"]).tail
+            assert np.sum(seen[:lowest] != "") <= 20 + max(0.0, rise - 0.1) / 0.002
             black = np.flatnonzero(seen[lowest:] != "trim")[0]
             assert VALANCE[0] - 0.004 <= black * 0.002 <= VALANCE[1] + 0.004
             # the next 10 cm: a cover is at least 0.20 - 0.08 m tall, the grille overlaps its top 1 cm
