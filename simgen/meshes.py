@@ -93,9 +93,9 @@ _STYLES = {
 # rarely publish the angle for cars; EU type approval asks of an off-road M1 vehicle (M1G),
 # among five of six criteria, a departure angle of at least 20 deg (87/403/EEC, carried into
 # 2007/46/EC Annex II), so cars stay below it: 14-20 deg, and 18-24 deg for SUVs and MPVs, which
-# stand higher (a judgement: no survey found). The bumper's top stays under the
-# lamps (bonnet front less 0.17 m), so on the lowest cars with the highest rears (0.3 % of drawn
-# cars) the rear cover is as little as 3 cm tall.
+# stand higher (a judgement: no survey found). The bumper's top stays under the lamps (bonnet
+# front less 0.17 m), so on the lowest cars with the highest rears (0.3 % of drawn cars) the rear
+# cover is as little as 3 cm tall.
 DEPARTURE_DEG = {"car": (14.0, 20.0), "suv": (18.0, 24.0)}
 # Body width against the mirrors' span, which is the box's width: VW Golf VII 1.799 m against
 # 2.027 m (maker's data).
