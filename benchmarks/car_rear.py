@@ -21,6 +21,7 @@ import argparse
 
 import numpy as np
 
+from kitti.boxes import points_in_boxes
 from kitti.dataset import KittiDataset
 from lifter.points import frame_points
 
@@ -38,21 +39,19 @@ def rear_face_lows(ds: KittiDataset) -> np.ndarray:
             continue
         rect = None
         for o in ds.labels(fid):
-            x, y, z, h, w, length, ry = o.box7
+            x, y, z, _, w, length, ry = o.box7
             off_axis = np.degrees(np.arccos(min(1.0, abs(np.sin(ry)))))  # its length from the z axis
             if (o.type != "Car" or o.occluded > 1 or abs(x) >= AXIS_M or not NEAR_M < z < FAR_M
                     or off_axis > HEADING_DEG):
                 continue
             if rect is None:
                 rect = frame_points(cloud, ds.calib(fid), None).rect
-            c, s = np.cos(ry), np.sin(ry)  # box frame: along its length, across, up
-            d = rect - [x, y, z]
-            along, across, up = c * d[:, 0] - s * d[:, 2], s * d[:, 0] + c * d[:, 2], -d[:, 1]
-            near_end = np.sign(s * z - c * x) * length / 2  # the end facing the camera (at the origin)
-            face = ((np.abs(along - near_end) < FACE_M) & (np.abs(across) < w / 2 - SIDE_M)
-                    & (up > ROAD_M) & (up < TOP_M))
+            axis = np.array([np.cos(ry), 0.0, -np.sin(ry)])  # the box's length direction
+            end = np.array([x, y, z]) - np.sign(axis @ [x, y, z]) * length / 2 * axis  # facing the camera
+            slab = [*(end - [0.0, ROAD_M, 0.0]), TOP_M - ROAD_M, w - 2 * SIDE_M, 2 * FACE_M, ry]
+            face = points_in_boxes(rect, slab)[0]  # the rear face's slab, ROAD_M to TOP_M up
             if face.any():
-                rows.append((np.hypot(x, z), float(up[face].min())))
+                rows.append((np.hypot(x, z), float(y - rect[face, 1].max())))
     return np.array(rows).reshape(-1, 2)
 
 
