@@ -174,17 +174,12 @@ def _seen_along_x(parts, origins: np.ndarray, sgn: float) -> np.ndarray:
 
 
 def _first_hits(parts, origins: np.ndarray, dirs: np.ndarray) -> np.ndarray:
-    """(N, 3) the point each ray meets first (NaN for none): on its triangle's plane."""
+    """(N, 3) the point each ray meets first (NaN for none), at Embree's own hit distance."""
     from simgen.facets import shared
     from simgen.shadows import embree_scene
 
-    v, f = shared(parts)
-    prim = embree_scene(v, f).run(origins.astype(np.float32), dirs.astype(np.float32))
-    tri = v[f[np.maximum(prim, 0)]]
-    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    with np.errstate(divide="ignore", invalid="ignore"):  # rays that meet nothing: NaN
-        t = np.einsum("ij,ij->i", n, tri[:, 0] - origins) / np.einsum("ij,ij->i", n, dirs)
-    return np.where((prim >= 0)[:, None], origins + t[:, None] * dirs, np.nan)
+    res = embree_scene(*shared(parts)).run(origins.astype(np.float32), dirs.astype(np.float32), output=1)
+    return np.where((res["primID"] >= 0)[:, None], origins + res["tfar"][:, None] * dirs, np.nan)
 
 
 def test_the_rear_floor_rises_to_the_departure_plane_and_shows_the_tyres():
