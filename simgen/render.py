@@ -121,6 +121,43 @@ class _ExactCamera(pyrender.IntrinsicsCamera):
         return super().get_projection_matrix(width, height) @ self.residual_gl
 
 
+# Pixels beyond an image side that a face must reach to be drawn: the multisampled pass's samples
+# lie within their pixels, so one would do; two leave room for rounding.
+VIEW_MARGIN_PX = 2.0
+
+
+@dataclass(frozen=True)
+class _View:
+    """The camera's view volume as five planes (world frame): near, left, right, top, bottom.
+
+    The world reaches all round the sensor (the LiDAR's 360 deg), the camera sees a quarter of
+    it: the colour and instance passes leave out every face that lies wholly outside one plane
+    of the volume (behind the near plane, or VIEW_MARGIN_PX beyond an image side). Such a face
+    has no fragment in the volume, a convex set, so the same pixels come out as with it, at
+    less to upload and rasterize; shadow casters and the LiDAR keep every face."""
+
+    planes: np.ndarray  # (5, 4): a point p lies outside plane k where planes[k] @ (p, 1) < 0
+
+    @staticmethod
+    def of(K: np.ndarray, cam2_from_world: np.ndarray, width: int, height: int) -> _View:
+        m = 0.5 + VIEW_MARGIN_PX  # pixel centres at integers: the image spans -0.5 to W - 0.5
+        z = np.array([0.0, 0.0, 1.0])
+        cam = np.array([[*z, -ZNEAR], [*(K[0] + m * z), 0.0], [*((width - 1 + m) * z - K[0]), 0.0],
+                        [*(K[1] + m * z), 0.0], [*((height - 1 + m) * z - K[1]), 0.0]])
+        return _View(cam @ cam2_from_world)
+
+    def faces(self, vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+        """(F,) bool: which triangles may reach a pixel, of world-frame `vertices` (V, 3) and
+        `faces` (F, 3) indexing them. Each vertex's planes outside as bits, a face culled where
+        its three corners share one: on the shared vertices, a fifth of the corners."""
+        d = vertices @ self.planes[:, :3].T + self.planes[:, 3]
+        out = np.zeros(len(vertices), np.uint8)
+        for k in range(len(self.planes)):
+            out |= (d[:, k] < 0).view(np.uint8) << k
+        a, b, c = out[faces].T
+        return (a & b & c) == 0
+
+
 _RENDERERS: dict[tuple[int, int, int], pyrender.OffscreenRenderer] = {}
 
 
@@ -245,23 +282,27 @@ class _Shader:
         self.headroom = HEADROOM if self.mode == "lit" else 1.0
 
     def colors(self, parts: list[Part], tris: np.ndarray, normals: np.ndarray, moving: bool,
-               albedo_gain: np.ndarray | None = None,
-               corner_normals: np.ndarray | None = None, glow: np.ndarray | None = None) -> np.ndarray:
+               albedo_gain: np.ndarray | None = None, corner_normals: np.ndarray | None = None,
+               glow: np.ndarray | None = None, only: np.ndarray | None = None) -> np.ndarray:
         """(F, 4) RGBA of all faces of the parts (world-frame triangles and normals), in
-        _triangles order; with `corner_normals` (F, 3, 3) the lit look shades each corner of
-        each face with its own normal, (F, 3, 4), and the rasteriser blends them across the face.
-        `glow` (P, 3): the linear radiance each part emits (lit look only; lit stop lamps)."""
+        _triangles order, or with `only` (a mask over them) of those faces alone (tris, normals
+        and corner normals then theirs alone); with `corner_normals` (F, 3, 3) the lit look
+        shades each corner of each face with its own normal, (F, 3, 4), and the rasteriser blends
+        them across the face. `glow` (P, 3): the linear radiance each part emits (lit look only;
+        lit stop lamps)."""
         counts = [len(p.mesh.faces) for p in parts]
+        pick = (lambda a: a) if only is None else (lambda a: a[only])
         if self.mode == "thermal":
-            rgb = np.repeat(np.array([_thermal(p, moving) for p in parts]), counts, axis=0)
+            rgb = pick(np.repeat(np.array([_thermal(p, moving) for p in parts]), counts, axis=0))
             return np.c_[rgb, np.ones(len(rgb))]
         albedo = np.repeat(np.array([p.material.color for p in parts], float), counts, axis=0)
         if albedo_gain is not None:
             albedo = albedo * np.repeat(albedo_gain, counts, axis=0)
+        albedo = pick(albedo)
         if self.mode == "pbr":
             return np.c_[albedo, np.ones(len(albedo))]
-        glossy = np.repeat([p.material.name in GLOSSY for p in parts], counts)
-        emitted = None if glow is None else np.repeat(glow, counts, axis=0)
+        glossy = pick(np.repeat([p.material.name in GLOSSY for p in parts], counts))
+        emitted = None if glow is None else pick(np.repeat(glow, counts, axis=0))
         if corner_normals is None:
             centres = (tris[:, 0] + tris[:, 1] + tris[:, 2]) / 3  # the mean over corners, in its order
             return self._lit(albedo, glossy, centres, normals, emitted)
@@ -328,15 +369,16 @@ def _thermal(part: Part, moving: bool) -> tuple[float, float, float]:
     return (t, t, t)
 
 
-def _actor_meshes(bodies: list[tuple[list[Part], np.ndarray, bool]], shader: _Shader,
+def _actor_meshes(bodies: list[tuple[list[Part], np.ndarray, bool]], shader: _Shader, view: _View,
                   rng: np.random.Generator | None = None, glow: np.ndarray | None = None
-                  ) -> tuple[list[pyrender.Mesh], pyrender.Node | None, Occluders, Reach]:
-    """One flat-shaded mesh per actor (parts in the actor frame), all actors shaded in one
-    vectorised pass in the world frame; with `rng` (the lit look with textures) also all actors
-    in one node for the colour pass, glass, paint and plates wearing their textures
-    (_texture_coordinates; one primitive per texture, where one per actor and texture would cost
-    pyrender a draw call each); their triangles (world frame) as shadow casters; and each body's
-    box, where it can hide the sky. `glow` (P, 3): what each part emits in the lit look."""
+                  ) -> tuple[list[pyrender.Mesh | None], pyrender.Node | None, Occluders, Reach]:
+    """One flat-shaded mesh per actor of its faces in `view` (parts in the actor frame; None for
+    an actor wholly out of view), all actors shaded in one vectorised pass in the world frame;
+    with `rng` (the lit look with textures) also all actors in one node for the colour pass,
+    glass, paint and plates wearing their textures (_texture_coordinates; one primitive per
+    texture, where one per actor and texture would cost pyrender a draw call each); all their
+    triangles (world frame) as shadow casters; and each body's box, where it can hide the sky.
+    `glow` (P, 3): what each part emits in the lit look."""
     if not bodies:
         return ([], None, Occluders(np.zeros((0, 3, 3), np.float32), np.zeros(0, np.float32)),
                 Reach(np.zeros((0, 4, 4)), np.zeros((0, 3)), np.zeros((0, 3))))
@@ -349,42 +391,65 @@ def _actor_meshes(bodies: list[tuple[list[Part], np.ndarray, bool]], shader: _Sh
     reach = Reach(np.array([np.linalg.inv(pose) for _, pose, _ in bodies]),
                   np.minimum.reduceat(vertices, v_starts), np.maximum.reduceat(vertices, v_starts))
     geo = list(zip(np.split(own_tris, ends), np.split(own_n, ends)))
-    world_tris = np.concatenate([t @ pose[:3, :3].T + pose[:3, 3] for (t, _), (_, pose, _) in zip(geo, bodies)])
-    world_n = np.concatenate([n @ pose[:3, :3].T for (_, n), (_, pose, _) in zip(geo, bodies)])
-    if shader.mode == "thermal":  # warm when moving: per actor
-        rgba = np.concatenate([shader.colors(b, None, None, moving) for b, _, moving in bodies])
-    elif shader.mode == "lit":
-        bent = _bent_normals([len(p.mesh.faces) for p in parts], own_tris, own_n)
-        bent = np.concatenate([b @ pose[:3, :3].T
-                               for b, (_, pose, _) in zip(np.split(bent, ends), bodies)])
-        rgba = shader.colors(parts, world_tris, world_n, False, corner_normals=bent, glow=glow)
-    else:
-        rgba = shader.colors(parts, world_tris, world_n, False)
     world_v = np.concatenate([v @ pose[:3, :3].T + pose[:3, 3]
                               for v, (_, pose, _) in zip(np.split(vertices, v_starts[1:]), bodies)])
+    world_tris = np.take(world_v, faces, axis=0)  # the same bits as each corner moved on its own
     casters = Occluders.of_parts(parts, world_tris, (world_v, faces))
+    seen = view.faces(world_v, faces)
+    own_seen = np.split(seen, ends)
+    # Colours, bent normals and texture coordinates only for the actors with a face in view
+    # (`sel`: all their faces): each is a face's or a part's own, the same bits as over all actors.
+    visible = [i for i, s in enumerate(own_seen) if s.any()]
+    if not visible:
+        return [None] * len(bodies), None, casters, reach
+    in_view = np.zeros(len(bodies), bool)
+    in_view[visible] = True
+    sel = np.repeat(in_view, counts)
+    seen_parts = [p for i in visible for p in bodies[i][0]]
+    seen_n = np.concatenate([geo[i][1] @ bodies[i][1][:3, :3].T for i in visible])
+    seen_tris = world_tris[sel]
+    seen_ends = np.cumsum([counts[i] for i in visible])[:-1]
+    if shader.mode == "thermal":  # warm when moving: per actor
+        rgba = np.concatenate([shader.colors(bodies[i][0], None, None, bodies[i][2]) for i in visible])
+    elif shader.mode == "lit":
+        bent = _bent_normals([len(p.mesh.faces) for p in seen_parts], own_tris[sel], own_n[sel])
+        bent = np.concatenate([b @ bodies[i][1][:3, :3].T
+                               for b, i in zip(np.split(bent, seen_ends), visible)])
+        part_in_view = np.repeat(in_view, [len(b) for b, _, _ in bodies])
+        rgba = shader.colors(seen_parts, seen_tris, seen_n, False, corner_normals=bent,
+                             glow=None if glow is None else glow[part_in_view])
+    else:
+        rgba = shader.colors(seen_parts, seen_tris, seen_n, False)
     if rng is None:
-        return ([pyrender.Mesh([_primitive(t, shader.gl_normals(n), c, _PLAIN)])
-                 for (t, n), c in zip(geo, np.split(rgba, ends))], None, casters, reach)
+        colours = dict(zip(visible, np.split(rgba, seen_ends)))
+        own = [pyrender.Mesh([_primitive(t[s], shader.gl_normals(n[s]), colours[i][s], _PLAIN)])
+               if s.any() else None for i, ((t, n), s) in enumerate(zip(geo, own_seen))]
+        return own, None, casters, reach
     # Each actor draws a shift of its glass and paint and a plate of the plates' tile.
-    shift = np.repeat(rng.uniform(0.0, 1.0, len(bodies)), counts)
-    plate = np.repeat(rng.integers(textures.PLATES_PER_TILE, size=len(bodies)), counts)
-    prims, plain = [], np.ones(len(world_tris), bool)
+    shift = np.repeat(rng.uniform(0.0, 1.0, len(bodies)), counts)[sel]
+    plate = np.repeat(rng.integers(textures.PLATES_PER_TILE, size=len(bodies)), counts)[sel]
+    seen = seen[sel]  # from here on, of the faces of `sel`
+    prims, plain = [], seen.copy()
     gain = np.array([textures.MAX_GAIN] * 3 + [1.0])
-    worn = _texture_coordinates(parts, own_tris, own_n, shift, plate)
+    worn = _texture_coordinates(seen_parts, own_tris[sel], own_n[sel], shift, plate)
     # The merged mesh sits at the actors' centroid, not at the static world's origin: pyrender
     # draws the nodes farthest first, and two nodes at one distance in the order of a set (of
     # objects hashed by address), which would decide run by run who wins a depth tie (a tyre on
     # the road).
     origin = world_tris.reshape(-1, 3).mean(axis=0)
-    local = world_tris - origin
+    local = seen_tris - origin
     for kind, (idx, uv) in worn.items():
-        prims.append(_primitive(local[idx], None, rgba[idx] * gain, _textured(kind, 0), uv))
         plain[idx] = False
-    prims.append(_primitive(local[plain], None, rgba[plain], _PLAIN))
-    merged = pyrender.Node(mesh=pyrender.Mesh(prims), translation=origin)
+        shown = seen[idx]
+        if shown.any():
+            prims.append(_primitive(local[idx[shown]], None, rgba[idx[shown]] * gain, _textured(kind, 0),
+                                    uv[shown]))
+    if plain.any():
+        prims.append(_primitive(local[plain], None, rgba[plain], _PLAIN))
+    merged = pyrender.Node(mesh=pyrender.Mesh(prims), translation=origin) if prims else None
     # The instance pass sets one colour per actor: its own meshes need no colours.
-    return [pyrender.Mesh([_primitive(t, None, None, _PLAIN)]) for t, _ in geo], merged, casters, reach
+    return ([pyrender.Mesh([_primitive(t[s], None, None, _PLAIN)]) if s.any() else None
+             for (t, _), s in zip(geo, own_seen)], merged, casters, reach)
 
 
 def _texture_coordinates(parts: list[Part], tris: np.ndarray, normals: np.ndarray, shift: np.ndarray,
@@ -484,31 +549,38 @@ def _planar_uv(tris: np.ndarray, normals: np.ndarray, tile: tuple[float, float],
     return uv
 
 
-def _static_mesh(parts: list[Part], shader: _Shader, world: World) -> tuple[pyrender.Mesh, Occluders]:
-    """The static world, one primitive per texture tile (and one for untextured faces), and its
-    triangles as shadow casters."""
+def _static_mesh(parts: list[Part], shader: _Shader, world: World, view: _View
+                 ) -> tuple[pyrender.Mesh | None, Occluders]:
+    """The static world's faces in `view`, one primitive per texture tile (and one for untextured
+    faces; None where no face is in view), and all its triangles as shadow casters."""
     vertices, faces = facets.shared(parts)
     tris, normals = facets.faceted(vertices, faces)
     layout = static_layout(world, parts, normals)
-    rgba = shader.colors(parts, tris, normals, False, layout.gain)
     casters = Occluders.of_parts(parts, tris, (vertices, faces))
+    seen = view.faces(vertices, faces)
+    rgba = np.zeros((len(tris), 4))  # shaded where seen
+    rgba[seen] = shader.colors(parts, tris[seen], normals[seen], False, layout.gain, only=seen)
     if shader.mode != "lit" or not world.appearance.textures:
-        return pyrender.Mesh([_primitive(tris, shader.gl_normals(normals), rgba, _PLAIN)]), casters
+        prims = [_primitive(tris[seen], shader.gl_normals(normals[seen]), rgba[seen], _PLAIN)]
+        return (pyrender.Mesh(prims) if seen.any() else None), casters
     first = np.cumsum([0] + [len(p.mesh.faces) for p in parts])
-    prims, plain = [], np.ones(len(tris), bool)
+    prims, plain = [], seen.copy()
     for w in layout.wearing:
         own = slice(first[w.part], first[w.part + 1])  # the part's faces
         plain[own] = False
+        shown = seen[own][w.faces]
+        if not shown.any():
+            continue
         t, n = tris[own][w.faces], normals[own][w.faces]
-        if w.kind in FACADE_KINDS:
-            uv = facade_uv(t, n, w.tile, w.shift)
-        else:
-            uv = _planar_uv(t, n, w.tile, w.shift)
-        colour = rgba[own][w.faces] * np.array([textures.MAX_GAIN] * 3 + [1.0])
-        prims.append(_primitive(t, None, colour, _textured(w.kind, w.variant), uv))  # lit: flat
+        if w.kind in FACADE_KINDS:  # from the whole wall, seen or not
+            uv = facade_uv(t, n, w.tile, w.shift)[shown]
+        else:  # face by face
+            uv = _planar_uv(t[shown], n[shown], w.tile, w.shift)
+        colour = rgba[own][w.faces][shown] * np.array([textures.MAX_GAIN] * 3 + [1.0])
+        prims.append(_primitive(t[shown], None, colour, _textured(w.kind, w.variant), uv))  # lit: flat
     if plain.any():
         prims.append(_primitive(tris[plain], None, rgba[plain], _PLAIN))
-    return pyrender.Mesh(prims), casters
+    return (pyrender.Mesh(prims) if prims else None), casters
 
 
 _DOME_RADIUS = 350.0  # m, inside ZFAR
@@ -609,9 +681,11 @@ def build_scene(world: World) -> BuiltScene:
                    ambient_light=(AMBIENT[light.time],) * 3)
     seg: dict = {}
     casters = Occluders(np.zeros((0, 3, 3), np.float32), np.zeros(0, np.float32))
+    view = _View.of(rig.intrinsics(), cam2_from_world, rig.width, rig.height)
     if world.static:
-        mesh, casters = _static_mesh(world.static, shader, world)
-        seg[scene.add(mesh)] = (0, 0, 0)
+        mesh, casters = _static_mesh(world.static, shader, world, view)
+        if mesh is not None:
+            seg[scene.add(mesh)] = (0, 0, 0)
     if shader.mode == "lit":
         scene.add(_sky_dome(world, shader.headroom), pose=np.r_[np.c_[np.eye(3), eye], [[0, 0, 0, 1]]])
     lamps: list[tuple[Part, np.ndarray, tuple]] = []
@@ -624,10 +698,12 @@ def build_scene(world: World) -> BuiltScene:
                   if lit and p.material.name in EMISSIVE]
     textured = shader.mode == "lit" and world.appearance.textures
     meshes, merged, actor_casters, reach = _actor_meshes(
-        bodies, shader, factor_rng(world.seed, world.frame_index, "actor_textures") if textured else None,
+        bodies, shader, view,
+        factor_rng(world.seed, world.frame_index, "actor_textures") if textured else None,
         _stop_lamp_glow(world.actors, bodies) if shader.mode == "lit" else None)
     for actor, mesh in zip(world.actors, meshes):
-        seg[scene.add(mesh, pose=actor.pose)] = _seg_code(actor.id)
+        if mesh is not None:
+            seg[scene.add(mesh, pose=actor.pose)] = _seg_code(actor.id)
     if merged is not None:  # not in `seg`, so the instance pass never draws it
         scene.add_node(merged)
     for part, pose, code in lamps:
@@ -653,8 +729,8 @@ def build_scene(world: World) -> BuiltScene:
                                          innerConeAngle=0.15, outerConeAngle=0.45), pose=p)
     flags = {"pbr": RenderFlags.NONE, "thermal": RenderFlags.FLAT,
              "lit": RenderFlags.FLAT | RenderFlags.RGBA}[shader.mode]
-    return BuiltScene(scene, seg, flags, Casters(casters, actor_casters, reach), meshes,
-                      None if merged is None else merged.mesh)
+    return BuiltScene(scene, seg, flags, Casters(casters, actor_casters, reach),
+                      [m for m in meshes if m is not None], None if merged is None else merged.mesh)
 
 
 def _shade_tint(time: str) -> np.ndarray:

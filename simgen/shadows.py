@@ -43,6 +43,9 @@ SKY_RAYS = 32
 # it (an infinitely long wall): 0.05 at d = 2 H, less beside a box of finite length; beyond that
 # reach the occlusion is left out.
 SKY_REACH = 2.0
+# m: how far beyond the rays' own bounds Occluders.along keeps a triangle (float32 rounding of
+# the rays and triangles is far smaller)
+AXIS_MARGIN = 0.05
 
 
 # Embree 4's enums (rtcore_common.h, rtcore_buffer.h) for one triangle geometry.
@@ -143,6 +146,30 @@ class Occluders:
         corners = self.tris.reshape(-1, 3)  # unshared, as embreex's TriangleMesh makes of (F, 3, 3)
         return embree_scene(corners, np.arange(len(corners)).reshape(-1, 3))
 
+    def along(self, points: np.ndarray, direction: np.ndarray) -> Occluders:
+        """The triangles that a ray from one of `points` (N, 3) along the unit `direction` may
+        meet: those not wholly outside the prism the rays sweep, the points' bounding box across
+        the direction (AXIS_MARGIN wider) from their lowest point along it upwards. The rest
+        cannot change a hit, and a smaller scene is faster to build and to cast into."""
+        across = np.cross([0.0, 0.0, 1.0], direction)
+        if np.linalg.norm(across) < 1e-6:
+            across = np.array([1.0, 0.0, 0.0])
+        across /= np.linalg.norm(across)
+        axes = np.stack([across, np.cross(direction, across), direction])  # rows: a frame
+        p = points @ axes.T
+        lo, hi = p.min(axis=0) - AXIS_MARGIN, p.max(axis=0) + AXIS_MARGIN
+        corners = (self.vertices if self.faces is not None else self.tris.reshape(-1, 3)) @ axes.T
+        out = np.zeros(len(corners), np.uint8)
+        for k in range(3):
+            out |= (corners[:, k] < lo[k]).view(np.uint8) << k
+        for k in range(2):  # no upper bound along the direction: the rays run on
+            out |= (corners[:, k] > hi[k]).view(np.uint8) << (3 + k)
+        a, b, c = out[self.faces].T if self.faces is not None else out.reshape(-1, 3).T
+        keep = (a & b & c) == 0
+        if self.faces is None:
+            return Occluders(self.tris[keep], self.depth[keep])
+        return Occluders(self.tris[keep], self.depth[keep], self.vertices, self.faces[keep])
+
     @staticmethod
     def join(a: Occluders, b: Occluders) -> Occluders:
         if not len(a.tris) or not len(b.tris):
@@ -177,10 +204,10 @@ def sun_shadow(occluders: Occluders, depth: np.ndarray, K: np.ndarray, cam2_from
     if not need.any() or to_sun[2] <= 0:
         return np.zeros((H, W), np.float32)
     points = _world_points(u[need], v[need], z[need], K, cam2_from_world)
-    scene = occluders.scene()
     origins = (points + T_NEAR * to_sun).astype(np.float32)
+    occluders = occluders.along(origins, to_sun)
     dirs = np.broadcast_to(to_sun.astype(np.float32), origins.shape).copy()
-    prim = scene.run(origins, dirs)
+    prim = occluders.scene().run(origins, dirs)
     small[need] = np.where(prim >= 0, occluders.depth[np.maximum(prim, 0)], 0.0)
     small = cv2.GaussianBlur(small, (0, 0), SOFTEN)
     return cv2.resize(small, (W, H), interpolation=cv2.INTER_LINEAR) * (depth > 0)

@@ -14,7 +14,7 @@ from simgen import textures
 from simgen.facets import triangles
 from simgen.materials import GLASS, PLATE, TRIM
 from simgen.meshes import box, paint
-from simgen.render import _texture_coordinates, build_scene, render
+from simgen.render import _texture_coordinates, _View, build_scene, render
 from simgen.sample import sample_world
 from simgen.spec import load_spec
 from simgen.world import Part
@@ -104,17 +104,27 @@ def test_texture_coordinates_by_hand():
                                atol=1e-9)
 
 
-def test_the_colour_pass_draws_every_actor_face_once_textured_faces_as_stored():
+def test_the_colour_pass_draws_every_actor_face_in_view_once_textured_faces_as_stored():
     """All actors in one mesh: a primitive per texture and one plain, every face of every actor
-    in exactly one, the textured ones' colours scaled by MAX_GAIN as the tiles are."""
+    that may reach a pixel (render._View) in exactly one, the textured ones' colours scaled by
+    MAX_GAIN as the tiles are; the instance pass draws the same faces, actor by actor."""
     world = sample_world(load_spec("scenes/urban.yaml"), 0, 0)
     built = build_scene(world)
+    rig = world.rig
+    view = _View.of(rig.intrinsics(), rig.cam2_from_world(), rig.width, rig.height)
+    seen = []  # faces in view, per actor
+    for a in world.actors:
+        for p in a.parts:
+            v = np.asarray(p.mesh.vertices) @ a.pose[:3, :3].T + a.pose[:3, 3]
+            seen.append(int(view.faces(v, np.asarray(p.mesh.faces)).sum()))
     faces = sum(len(p.mesh.faces) for a in world.actors for p in a.parts)
+    assert 0 < sum(seen) < faces / 2  # most of the street lies beside and behind the camera
     prims = built.colour_actors.primitives
     assert [p.material.baseColorTexture is None for p in prims] == [False, False, False, True]
-    assert sum(len(p.positions) for p in prims) == 3 * faces
+    assert sum(len(p.positions) for p in prims) == 3 * sum(seen)
     assert all(np.max(p.color_0[:, :3]) > 1.0 for p in prims[:3]) and np.max(prims[3].color_0) <= 1.0
-    assert len(built.actor_meshes) == len(world.actors)
+    own = [sum(len(q.positions) for q in m.primitives) // 3 for m in built.actor_meshes]
+    assert sum(own) == sum(seen) and min(own) > 0
 
 
 def test_textures_change_a_cars_colour_only():

@@ -122,3 +122,44 @@ def test_darken_by_hand():
     expected = np.round(200 * np.array([rest, 0.0, 1 - 0.5 * rest, 1.0]) ** (1 / 2.2))
     assert np.array_equal(got, np.repeat(expected[:, None], 3, axis=1))
     assert list(expected) == [107.0, 0.0, 188.0, 200.0]
+
+
+def test_along_keeps_what_a_ray_may_meet():
+    """Occluders.along by hand: rays from two points straight up (and a slanted sun) can meet
+    only what stands in their prism, above the lower point; with and without shared vertices."""
+    tri = {"above": [[0, 0, 5], [1, 0, 5], [0, 1, 5]],
+           "far above": [[0.5, 0.5, 1000], [2, 0.5, 1000], [0.5, 2, 1000]],
+           "across the prism, corners outside": [[-5, 0.5, 5], [5, 0.5, 5], [5, 0.6, 5]],
+           "beside it, 4 cm off": [[1.04, 0, 5], [2, 0, 5], [2, 1, 5]],
+           "beside it, 1 m off": [[2, 0, 5], [3, 0, 5], [3, 1, 5]],
+           "below the points": [[0, 0, -1], [1, 0, -1], [0, 1, -1]]}
+    want = [True, True, True, True, False, False]
+    tris = np.array(list(tri.values()), np.float32)
+    depth = np.linspace(0.1, 0.6, len(tris)).astype(np.float32)
+    points = np.array([[0.0, 0.0, 0.0], [1.0, 1.0, 0.0]])
+    up = np.array([0.0, 0.0, 1.0])
+    faces = np.arange(3 * len(tris), dtype=np.int32).reshape(-1, 3)
+    shared = Occluders(tris, depth, tris.reshape(-1, 3), faces)
+    for occ in (Occluders(tris, depth), shared):
+        kept = occ.along(points, up)
+        assert np.array_equal(kept.depth, depth[want])  # the kept triangles, in their order
+        assert np.array_equal(kept.tris, tris[want])
+    # A sun 45 deg above +x: a point's rays run through (5, 0, 5) and never below z = -x.
+    slant = np.array([1.0, 0.0, 1.0]) / np.sqrt(2.0)
+    on_it = np.array([[[5, -0.1, 5], [5.1, 0.1, 5], [4.9, 0.1, 5]], [[0, -1, -5], [1, 1, -5], [-1, 1, -5]]],
+                     np.float32)
+    kept = Occluders(on_it, np.ones(2, np.float32)).along(np.zeros((1, 3)), slant)
+    assert np.array_equal(kept.tris, on_it[:1])
+
+
+def test_leaving_out_what_no_ray_meets_changes_no_shadow(monkeypatch):
+    """A street frame's shade with the casters cut to the rays' prism and with all of them:
+    the same bytes."""
+    from simgen import render
+    from simgen.sample import sample_world
+    from simgen.spec import load_spec
+
+    world = sample_world(load_spec("scenes/urban.yaml"), 0, 3)
+    cut = render.render(world).color
+    monkeypatch.setattr(Occluders, "along", lambda self, points, direction: self)
+    assert np.array_equal(cut, render.render(world).color)
