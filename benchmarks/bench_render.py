@@ -4,10 +4,13 @@ Prints (1) the world sampling time (scenery and actor meshes) and the render tim
 frame of scenes/urban.yaml, split into scene build, colour pass (4x MSAA),
 segmentation+depth pass, sun shadows (Embree), the look and camera (fog/rain/sensor, exposure,
 noise, demosaicing; beside it the same with the camera's rectification off, the CFA on the output's
-own pixels, timed in the same loop) and the label derivation; (2) complete frames per second (sample + render + labels + all files, no LiDAR,
-and with the spec's LiDAR) of `simgen.generate` with 1 and 2 worker processes.
+own pixels, timed in the same loop) and the label derivation; (2) complete frames per second
+(sample + render + labels + all files, no LiDAR, and with the spec's LiDAR) of `simgen.generate`
+with 1 and 2 worker processes, over the whole run (process start-up included) and in its steady
+state (from the first tenth of the frames written to the last: what a long run sees).
 
-    .venv/bin/python benchmarks/bench_render.py [--frames N] [--spec scenes/urban.yaml] [--breakdown-only]
+    .venv/bin/python benchmarks/bench_render.py [--frames N] [--gen-frames M] [--spec scenes/urban.yaml]
+        [--breakdown-only | --throughput-only] [--workers 2] [--lidar-only]
 """
 
 from __future__ import annotations
@@ -85,23 +88,35 @@ def throughput(spec, n: int, workers: int, lidar: bool) -> None:
         with LocalBackend(workers) as backend:
             generate(s, out, frames=n, backend=backend)
         dt = time.perf_counter() - t0
+        # A frame's meta/ file is the last it writes (simgen.generate.make_frame).
+        done = np.sort([p.stat().st_mtime for p in (out / "training" / "meta").glob("*.json")])
     finally:
         shutil.rmtree(out)
+    k = max(1, n // 10)
+    steady = (len(done) - k) / (done[-1] - done[k - 1]) if len(done) > k else float("nan")
     print(f"  generate {n} frames, {workers} worker(s), LiDAR {'on' if lidar else 'off'}: "
-          f"{dt:.1f} s, {n / dt:.2f} frames/s (process start-up included)")
+          f"{dt:.1f} s, {n / dt:.2f} frames/s (process start-up included); "
+          f"{steady:.2f} frames/s from frame {k} written to the last")
 
 
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--spec", default="scenes/urban.yaml")
     ap.add_argument("--frames", type=int, default=12)
-    ap.add_argument("--breakdown-only", action="store_true", help="skip the throughput runs")
+    ap.add_argument("--gen-frames", type=int, help="frames of each throughput run (default: --frames)")
+    only = ap.add_mutually_exclusive_group()
+    only.add_argument("--breakdown-only", action="store_true", help="skip the throughput runs")
+    only.add_argument("--throughput-only", action="store_true", help="skip the breakdown")
+    ap.add_argument("--workers", type=int, action="append", help="throughput with this many workers "
+                    "(repeat for several; default 1 and 2)")
+    ap.add_argument("--lidar-only", action="store_true", help="throughput with the spec's LiDAR only")
     args = ap.parse_args()
     spec = load_spec(args.spec)
-    render_breakdown(spec, args.frames)
-    for lidar in () if args.breakdown_only else (False, True):
-        for workers in (1, 2):
-            throughput(spec, args.frames, workers, lidar)
+    if not args.throughput_only:
+        render_breakdown(spec, args.frames)
+    for lidar in () if args.breakdown_only else (True,) if args.lidar_only else (False, True):
+        for workers in args.workers or (1, 2):
+            throughput(spec, args.gen_frames or args.frames, workers, lidar)
 
 
 if __name__ == "__main__":
