@@ -49,3 +49,18 @@ def normals(tris: np.ndarray) -> np.ndarray:
     n = np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=1)
     n /= np.maximum(lengths(n), 1e-300)[:, None]
     return n
+
+
+def beyond(vertices: np.ndarray, faces: np.ndarray, planes: np.ndarray) -> np.ndarray:
+    """(F,) bool: which faces lie wholly outside one of the half-spaces `planes` (P, 4), a point
+    p being outside plane k where planes[k] @ (p, 1) < 0: a face whose three corners share such a
+    plane cannot meet anything inside them all (a convex set). Each vertex's planes are found
+    once, as bits (at most 8 planes), on the shared vertices (a fifth of the corners)."""
+    if len(planes) > 8:
+        raise ValueError(f"beyond: at most 8 planes, got {len(planes)}")
+    d = vertices @ planes[:, :3].T + planes[:, 3]
+    out = np.zeros(len(vertices), np.uint8)
+    for k in range(len(planes)):
+        out |= (d[:, k] < 0).view(np.uint8) << k
+    a, b, c = np.take(out, faces, axis=0).T
+    return (a & b & c) != 0

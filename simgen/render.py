@@ -148,14 +148,8 @@ class _View:
 
     def faces(self, vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
         """(F,) bool: which triangles may reach a pixel, of world-frame `vertices` (V, 3) and
-        `faces` (F, 3) indexing them. Each vertex's planes outside as bits, a face culled where
-        its three corners share one: on the shared vertices, a fifth of the corners."""
-        d = vertices @ self.planes[:, :3].T + self.planes[:, 3]
-        out = np.zeros(len(vertices), np.uint8)
-        for k in range(len(self.planes)):
-            out |= (d[:, k] < 0).view(np.uint8) << k
-        a, b, c = out[faces].T
-        return (a & b & c) == 0
+        `faces` (F, 3) indexing them."""
+        return ~facets.beyond(vertices, faces, self.planes)
 
 
 _RENDERERS: dict[tuple[int, int, int], pyrender.OffscreenRenderer] = {}
@@ -285,11 +279,10 @@ class _Shader:
                albedo_gain: np.ndarray | None = None, corner_normals: np.ndarray | None = None,
                glow: np.ndarray | None = None, only: np.ndarray | None = None) -> np.ndarray:
         """(F, 4) RGBA of all faces of the parts (world-frame triangles and normals), in
-        _triangles order, or with `only` (a mask over them) of those faces alone (tris, normals
-        and corner normals then theirs alone); with `corner_normals` (F, 3, 3) the lit look
-        shades each corner of each face with its own normal, (F, 3, 4), and the rasteriser blends
-        them across the face. `glow` (P, 3): the linear radiance each part emits (lit look only;
-        lit stop lamps)."""
+        _triangles order, or with `only` (a mask over them) of those faces alone; with
+        `corner_normals` (F, 3, 3) the lit look shades each corner of each face with its own
+        normal, (F, 3, 4), and the rasteriser blends them across the face. `glow` (P, 3): the
+        linear radiance each part emits (lit look only; lit stop lamps)."""
         counts = [len(p.mesh.faces) for p in parts]
         pick = (lambda a: a) if only is None else (lambda a: a[only])
         if self.mode == "thermal":
@@ -303,11 +296,12 @@ class _Shader:
             return np.c_[albedo, np.ones(len(albedo))]
         glossy = pick(np.repeat([p.material.name in GLOSSY for p in parts], counts))
         emitted = None if glow is None else pick(np.repeat(glow, counts, axis=0))
+        tris, normals = pick(tris), pick(normals)
         if corner_normals is None:
             centres = (tris[:, 0] + tris[:, 1] + tris[:, 2]) / 3  # the mean over corners, in its order
             return self._lit(albedo, glossy, centres, normals, emitted)
         rgba = self._lit(np.repeat(albedo, 3, axis=0), np.repeat(glossy, 3), tris.reshape(-1, 3),
-                         corner_normals.reshape(-1, 3),
+                         pick(corner_normals).reshape(-1, 3),
                          None if emitted is None else np.repeat(emitted, 3, axis=0))
         return rgba.reshape(-1, 3, 4)
 
@@ -559,7 +553,7 @@ def _static_mesh(parts: list[Part], shader: _Shader, world: World, view: _View
     casters = Occluders.of_parts(parts, tris, (vertices, faces))
     seen = view.faces(vertices, faces)
     rgba = np.zeros((len(tris), 4))  # shaded where seen
-    rgba[seen] = shader.colors(parts, tris[seen], normals[seen], False, layout.gain, only=seen)
+    rgba[seen] = shader.colors(parts, tris, normals, False, layout.gain, only=seen)
     if shader.mode != "lit" or not world.appearance.textures:
         prims = [_primitive(tris[seen], shader.gl_normals(normals[seen]), rgba[seen], _PLAIN)]
         return (pyrender.Mesh(prims) if seen.any() else None), casters

@@ -30,6 +30,7 @@ from embreex.mesh_construction import TriangleMesh
 from embreex.rtcore import EmbreeDevice
 from embreex.rtcore_scene import EmbreeScene
 
+from . import facets
 from .world import Part
 
 STEP = 3  # pixels between shadow rays
@@ -158,17 +159,15 @@ class Occluders:
         axes = np.stack([across, np.cross(direction, across), direction])  # rows: a frame
         p = points @ axes.T
         lo, hi = p.min(axis=0) - AXIS_MARGIN, p.max(axis=0) + AXIS_MARGIN
-        corners = (self.vertices if self.faces is not None else self.tris.reshape(-1, 3)) @ axes.T
-        out = np.zeros(len(corners), np.uint8)
-        for k in range(3):
-            out |= (corners[:, k] < lo[k]).view(np.uint8) << k
-        for k in range(2):  # no upper bound along the direction: the rays run on
-            out |= (corners[:, k] > hi[k]).view(np.uint8) << (3 + k)
-        a, b, c = out[self.faces].T if self.faces is not None else out.reshape(-1, 3).T
-        keep = (a & b & c) == 0
-        if self.faces is None:
-            return Occluders(self.tris[keep], self.depth[keep])
-        return Occluders(self.tris[keep], self.depth[keep], self.vertices, self.faces[keep])
+        # Above each lower bound, below the upper ones across the direction (none along it: the
+        # rays run on).
+        planes = np.r_[np.c_[axes, -lo], np.c_[-axes[:2], hi[:2]]]
+        if self.faces is not None:
+            keep = ~facets.beyond(self.vertices, self.faces, planes)
+            return Occluders(self.tris[keep], self.depth[keep], self.vertices, self.faces[keep])
+        corners = self.tris.reshape(-1, 3)
+        keep = ~facets.beyond(corners, np.arange(len(corners)).reshape(-1, 3), planes)
+        return Occluders(self.tris[keep], self.depth[keep])
 
     @staticmethod
     def join(a: Occluders, b: Occluders) -> Occluders:
