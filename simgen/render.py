@@ -130,11 +130,12 @@ VIEW_MARGIN_PX = 2.0
 class _View:
     """The camera's view volume as five planes (world frame): near, left, right, top, bottom.
 
-    The world reaches all round the sensor (the LiDAR's 360 deg), the camera sees a quarter of
-    it: the colour and instance passes leave out every face that lies wholly outside one plane
-    of the volume (behind the near plane, or VIEW_MARGIN_PX beyond an image side). Such a face
-    has no fragment in the volume, a convex set, so the same pixels come out as with it, at
-    less to upload and rasterize; shadow casters and the LiDAR keep every face."""
+    The world reaches all round the sensor (the LiDAR's 360 deg), the camera looks one way (on
+    urban.yaml about half the faces could reach a pixel, results/simgen.md): the colour and
+    instance passes leave out every face that lies wholly outside one plane of the volume
+    (behind the near plane, or VIEW_MARGIN_PX beyond an image side). Such a face has no fragment
+    in the volume, a convex set, so the same pixels come out as with it, at less to upload and
+    rasterize; shadow casters and the LiDAR keep every face."""
 
     planes: np.ndarray  # (5, 4): a point p lies outside plane k where planes[k] @ (p, 1) < 0
 
@@ -429,7 +430,7 @@ def _actor_meshes(bodies: list[tuple[list[Part], np.ndarray, bool]], shader: _Sh
     # The merged mesh sits at the actors' centroid, not at the static world's origin: pyrender
     # draws the nodes farthest first, and two nodes at one distance in the order of a set (of
     # objects hashed by address), which would decide run by run who wins a depth tie (a tyre on
-    # the road).
+    # the road). The centroid of all actors, in view or not: every frame keeps its draw order.
     origin = world_tris.reshape(-1, 3).mean(axis=0)
     local = seen_tris - origin
     for kind, (idx, uv) in worn.items():
@@ -440,7 +441,7 @@ def _actor_meshes(bodies: list[tuple[list[Part], np.ndarray, bool]], shader: _Sh
                                     uv[shown]))
     if plain.any():
         prims.append(_primitive(local[plain], None, rgba[plain], _PLAIN))
-    merged = pyrender.Node(mesh=pyrender.Mesh(prims), translation=origin) if prims else None
+    merged = pyrender.Node(mesh=pyrender.Mesh(prims), translation=origin)  # `visible`: a face at least
     # The instance pass sets one colour per actor: its own meshes need no colours.
     return ([pyrender.Mesh([_primitive(t[s], None, None, _PLAIN)]) if s.any() else None
              for (t, _), s in zip(geo, own_seen)], merged, casters, reach)
