@@ -389,7 +389,7 @@ def _actor_meshes(bodies: list[tuple[list[Part], np.ndarray, bool]], shader: _Sh
     world_v = np.concatenate([v @ pose[:3, :3].T + pose[:3, 3]
                               for v, (_, pose, _) in zip(np.split(vertices, v_starts[1:]), bodies)])
     world_tris = np.take(world_v, faces, axis=0)  # the same bits as each corner moved on its own
-    casters = Occluders.of_parts(parts, world_tris, (world_v, faces))
+    casters = Occluders.of_mesh(parts, world_v, faces)
     seen = view.faces(world_v, faces)
     own_seen = np.split(seen, ends)
     # Colours, bent normals and texture coordinates only for the actors with a face in view
@@ -551,7 +551,7 @@ def _static_mesh(parts: list[Part], shader: _Shader, world: World, view: _View
     vertices, faces = facets.shared(parts)
     tris, normals = facets.faceted(vertices, faces)
     layout = static_layout(world, parts, normals)
-    casters = Occluders.of_parts(parts, tris, (vertices, faces))
+    casters = Occluders.of_mesh(parts, vertices, faces)
     seen = view.faces(vertices, faces)
     rgba = np.zeros((len(tris), 4))  # shaded where seen
     rgba[seen] = shader.colors(parts, tris, normals, False, layout.gain, only=seen)

@@ -125,20 +125,16 @@ class Occluders:
     faces: np.ndarray | None = None  # (F, 3) int32
 
     @staticmethod
-    def of_parts(parts: list[Part], tris: np.ndarray,
-                 shared: tuple[np.ndarray, np.ndarray] | None = None) -> Occluders:
-        """The parts' triangles (already in the world frame, in part order). `shared`, if given:
-        the same triangles as (vertices, faces), faces indexing the vertices; kept only where
-        they give `tris` exactly."""
-        depth = np.repeat([1.0 - p.material.porosity ** 2 for p in parts],
-                          [len(p.mesh.faces) for p in parts]).astype(np.float32)
-        tris = np.asarray(tris, np.float32).reshape(-1, 3, 3)
-        if shared is None:
-            return Occluders(tris, depth)
-        vertices, faces = np.asarray(shared[0], np.float32), np.asarray(shared[1], np.int32)
-        if faces.shape != (len(tris), 3) or not np.array_equal(np.take(vertices, faces, axis=0), tris):
-            return Occluders(tris, depth)
-        return Occluders(tris, depth, vertices, faces)
+    def of_parts(parts: list[Part], tris: np.ndarray) -> Occluders:
+        """The parts' triangles (already in the world frame, in part order)."""
+        return Occluders(np.asarray(tris, np.float32).reshape(-1, 3, 3), _depths(parts))
+
+    @staticmethod
+    def of_mesh(parts: list[Part], vertices: np.ndarray, faces: np.ndarray) -> Occluders:
+        """The parts' triangles as world-frame `vertices` (V, 3) and `faces` (F, 3) indexing
+        them, in part order: the triangles are gathered from the vertices, so both agree."""
+        vertices, faces = np.asarray(vertices, np.float32), np.asarray(faces, np.int32)
+        return Occluders(np.take(vertices, faces, axis=0), _depths(parts), vertices, faces)
 
     def scene(self) -> EmbreeScene:
         """An Embree scene of the triangles."""
@@ -178,6 +174,12 @@ class Occluders:
         return Occluders(np.concatenate([a.tris, b.tris]), np.concatenate([a.depth, b.depth]),
                          np.concatenate([a.vertices, b.vertices]),
                          np.concatenate([a.faces, b.faces + np.int32(len(a.vertices))]))
+
+
+def _depths(parts: list[Part]) -> np.ndarray:
+    """(F,) float32 shadow depth of each of the parts' faces: 1 - porosity ** 2."""
+    return np.repeat([1.0 - p.material.porosity ** 2 for p in parts],
+                     [len(p.mesh.faces) for p in parts]).astype(np.float32)
 
 
 def _world_points(u: np.ndarray, v: np.ndarray, z: np.ndarray, K: np.ndarray,
