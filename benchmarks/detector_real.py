@@ -45,25 +45,30 @@ def unmatched_scores(ds: KittiDataset, ids: list[str], pred: dict) -> list[np.nd
     return out
 
 
-def false_positives(ds: KittiDataset, ids: list[str], pred: dict) -> np.ndarray:
-    """Per frame, the Car detections at score >= FP_SCORE overlapping no label at FP_IOU."""
-    return np.array([int((s >= FP_SCORE).sum()) for s in unmatched_scores(ds, ids, pred)])
+def false_positives(unmatched: list[np.ndarray]) -> np.ndarray:
+    """Per frame, the Car detections at score >= FP_SCORE overlapping no label at FP_IOU, from
+    `unmatched_scores`."""
+    return np.array([int((s >= FP_SCORE).sum()) for s in unmatched])
 
 
 FOUND = (15, 20)  # labelled Cars and Vans found, about a third and a half of the dev frames' 42
 
 
-def at_equal_finds(ds: KittiDataset, ids: list[str], pred: dict) -> list[tuple[int, float, float]]:
+def at_equal_finds(objects: list[tuple], unmatched: list[np.ndarray]) -> list[tuple[int, float, float]]:
     """For each k in FOUND: the score at which the detector finds its k-th labelled Car or Van (its
-    best score at IoU >= FP_IOU) and the false positives a frame scoring at least that. Two weight
-    files compared at one score threshold differ in calibration as well as in what they tell
-    apart; compared at the same number of cars found, only in the second."""
-    found = np.sort([row[-1] for row in object_scores(ds, ids, pred)])[::-1]
-    unmatched = np.concatenate(unmatched_scores(ds, ids, pred))
+    best score at IoU >= FP_IOU, the last field of `object_scores`' rows) and the false positives a
+    frame (`unmatched_scores`) scoring at least that. Two weight files compared at one score
+    threshold differ in calibration as well as in what they tell apart; compared at the same number
+    of cars found, only in the second."""
+    found = np.sort([row[-1] for row in objects])[::-1]
+    pooled = np.concatenate(unmatched)
     rows = []
     for k in FOUND:
-        t = float(found[k - 1]) if k <= len(found) and found[k - 1] > 0 else float("nan")
-        rows.append((k, t, float((unmatched >= t).sum()) / len(ids) if t == t else float("nan")))
+        if k > len(found) or found[k - 1] <= 0:
+            rows.append((k, float("nan"), float("nan")))
+            continue
+        t = float(found[k - 1])
+        rows.append((k, t, float((pooled >= t).sum()) / len(unmatched)))
     return rows
 
 
@@ -169,13 +174,15 @@ def main() -> None:
         strict = evaluate_folders(Path(args.data) / "training" / "label_2", pred_dir, split,
                                   classes=["Car"], progress=False)
         ap7 = strict.ap["Car"]["2d"]["R40"]
-        fp = false_positives(ds, ids, pred)
+        unmatched = unmatched_scores(ds, ids, pred)
+        fp = false_positives(unmatched)
         print(f"| {w} | {' / '.join(f'{a:.1f}' for a in ap7)} | {fp.mean():.1f} (median {np.median(fp):.0f}) |")
         near.append((w, near_cars(ds, ids, pred)))
-        equal.append((w, at_equal_finds(ds, ids, pred)))
+        scored = object_scores(ds, ids, pred)
+        equal.append((w, at_equal_finds(scored, unmatched)))
         preds[w] = pred
         if args.objects:
-            objects.append((w, object_scores(ds, ids, pred)))
+            objects.append((w, scored))
     print("\n" + "\n".join(interval_rows(ds, ids, preds)))
     print(f"\nNear Cars and Vans (2D box >= {NEAR_PX} px, untruncated, occlusion <= 1), the best-"
           "overlapping Car detection (score >= 0.1):\n")
