@@ -375,7 +375,7 @@ def _actor_meshes(bodies: list[tuple[list[Part], np.ndarray, bool]], shader: _Sh
     triangles (world frame) as shadow casters; and each body's box, where it can hide the sky.
     `glow` (P, 3): what each part emits in the lit look."""
     if not bodies:
-        return ([], None, Occluders(np.zeros((0, 3, 3), np.float32), np.zeros(0, np.float32)),
+        return ([], None, Occluders.empty(),
                 Reach(np.zeros((0, 4, 4)), np.zeros((0, 3)), np.zeros((0, 3))))
     parts = [p for b, _, _ in bodies for p in b]
     vertices, faces = facets.shared(parts)  # each part in its actor's frame
@@ -675,7 +675,7 @@ def build_scene(world: World) -> BuiltScene:
     scene = _Scene(bg_color=(*((0.02,) * 3 if shader.mode == "thermal" else SKY[light.time]), 1.0),
                    ambient_light=(AMBIENT[light.time],) * 3)
     seg: dict = {}
-    casters = Occluders(np.zeros((0, 3, 3), np.float32), np.zeros(0, np.float32))
+    casters = Occluders.empty()
     view = _View.of(rig.intrinsics(), cam2_from_world, rig.width, rig.height)
     if world.static:
         mesh, casters = _static_mesh(world.static, shader, world, view)

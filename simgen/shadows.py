@@ -125,9 +125,9 @@ class Occluders:
     faces: np.ndarray | None = None  # (F, 3) int32
 
     @staticmethod
-    def of_parts(parts: list[Part], tris: np.ndarray) -> Occluders:
-        """The parts' triangles (already in the world frame, in part order)."""
-        return Occluders(np.asarray(tris, np.float32).reshape(-1, 3, 3), _depths(parts))
+    def empty() -> Occluders:
+        """No triangle: what casts no shadow."""
+        return Occluders(np.zeros((0, 3, 3), np.float32), np.zeros(0, np.float32))
 
     @staticmethod
     def of_mesh(parts: list[Part], vertices: np.ndarray, faces: np.ndarray) -> Occluders:

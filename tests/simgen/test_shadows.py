@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 import trimesh
 
+from simgen import facets
 from simgen.materials import ASPHALT, FOLIAGE
 from simgen.meshes import box
 from simgen.shadows import SKY_RAYS, SKY_STEP, SOFTEN, STEP, Occluders, Reach, sky_directions, sky_occlusion, sun_shadow
@@ -21,7 +22,7 @@ def _casters(material: Material) -> Occluders:
     ground = trimesh.Trimesh([[-50, -50, 0], [50, -50, 0], [50, 50, 0], [-50, 50, 0]],
                              [[0, 1, 2], [0, 2, 3]], process=False)
     parts = [Part(ground, ASPHALT), Part(box(-2, 2, -2, 2, 5, 6), material)]
-    return Occluders.of_parts(parts, np.concatenate([p.mesh.vertices[p.mesh.faces] for p in parts]))
+    return Occluders.of_mesh(parts, *facets.shared(parts))
 
 
 def _pixels_of(x0: float, x1: float, y0: float, y1: float) -> tuple[slice, slice]:
@@ -82,7 +83,7 @@ def test_sky_occlusion_of_a_plate_is_its_view_factor():
     the ground mask."""
     half, c = 2.0, 1.0
     plate = Part(box(-half, half, -half, half, c, c + 0.01), Material("slab", (0.5, 0.5, 0.5), 0.3))
-    occ = Occluders.of_parts([plate], plate.mesh.vertices[plate.mesh.faces])
+    occ = Occluders.of_mesh([plate], *facets.shared([plate]))
     # The reach's box stands on the ground, as an actor's does.
     reach = Reach(np.eye(4)[None], np.array([[-half, -half, 0.0]]), np.array([[half, half, c + 0.01]]))
     depth_img = np.full((N, N), 20.0, np.float32)
