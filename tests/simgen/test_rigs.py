@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from kitti.calib import Calibration
 from simgen.rigs import gantry_rig, onboard_rig, orbit_rig
 
 
@@ -51,3 +52,20 @@ def test_orbit_rig_looks_at_its_target_from_the_asked_distance():
     uv, depth = rig.calib.lidar_to_image((np.linalg.inv(rig.reference_pose) @ np.append(target, 1))[None, :3])
     np.testing.assert_allclose(uv[0], [621.0, 187.5], atol=1e-9)
     assert depth[0] == pytest.approx(35.0)
+
+
+def test_onboard_lidar_is_tilted_as_kittis_calibration_says_and_the_camera_is_level():
+    rig = onboard_rig()
+    # World vertical in the rectified camera is exactly its -y axis (labels' yaw-only boxes).
+    rect = rig.calib.velo_to_rect @ np.linalg.inv(rig.reference_pose)
+    np.testing.assert_allclose(rect[:3, :3], [[0, -1, 0], [0, 0, -1], [1, 0, 0]], atol=1e-12)
+    # KITTI's 2011_09_26 numbers (Calibration.kitti_default): A^-1 R0_rect Tr_velo_to_cam, A the
+    # axis swap, takes the LiDAR's forward axis 0.599 deg and its left axis 0.605 deg below the
+    # rectified camera's horizon (the arcsines of its bottom row), so world up leans that far.
+    up_in_lidar = np.linalg.inv(rig.reference_pose)[:3, :3] @ [0.0, 0.0, 1.0]
+    assert np.degrees(np.arcsin(-up_in_lidar[0])) == pytest.approx(0.599, abs=5e-4)
+    assert np.degrees(np.arcsin(-up_in_lidar[1])) == pytest.approx(0.605, abs=5e-4)
+    # The written calibration is KITTI's, made exactly rigid (its printed numbers are rigid to 2e-8).
+    kitti = Calibration.kitti_default()
+    np.testing.assert_allclose(rig.calib.Tr_velo_to_cam, kitti.Tr_velo_to_cam, atol=3e-8)
+    assert rig.reference_pose[2, 3] == 1.73

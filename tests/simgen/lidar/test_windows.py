@@ -54,6 +54,12 @@ def _wall_uv(world: World, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, textu
     return u % 1.0, v % 1.0, textures.windows(front.kind, front.variant)
 
 
+def _in_world(world: World, points: np.ndarray) -> np.ndarray:
+    """Returns in the world frame: the sensor stands at (0, 0, 1.73), tilted as KITTI's is."""
+    pose = world.lidar_pose
+    return points[:, :3].astype(np.float64) @ pose[:3, :3].T + pose[:3, 3]
+
+
 def _in(a, lo, hi):
     return (a >= lo) & (a < hi)
 
@@ -68,8 +74,7 @@ def _glazing(c: np.ndarray) -> np.ndarray:
 def swept():
     world = _world()
     s = scan(world, _spec(), 0)
-    p = s.points[:, :3].astype(np.float64)
-    p[:, 2] += 1.73  # world frame: the sensor stands at (0, 0, 1.73), unrotated
+    p = _in_world(world, s.points)
     front = p[:, 0] < D + 9.0  # not the roof
     return world, p[front], s.points[front, 3]
 
@@ -136,7 +141,7 @@ def test_the_camera_sees_glass_where_the_lidar_goes_through():
 
     world = _world()
     s = scan(world, _spec(), 0)
-    p = s.points[:, :3].astype(np.float64) + [0.0, 0.0, 1.73]
+    p = _in_world(world, s.points)
     front = p[:, 0] < D + 9.0
     behind = p[front, 0] - D
     o = np.array([0.0, 0.0, 1.73])

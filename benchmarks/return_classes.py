@@ -1,0 +1,131 @@
+"""What a generated scan's returns hit, in SemanticKITTI's classes, beside the share of points
+each class holds over SemanticKITTI's whole labelled set (a reference for the world's make-up
+that does not come from the eleven dev frames).
+
+    .venv/bin/python benchmarks/return_classes.py [--spec scenes/urban.yaml] [--frames 24] [--seed 0]
+        [--front-boundaries hedge,hedge,hedge,none]
+
+SemanticKITTI (Behley et al., ICCV 2019) labelled every point of the KITTI odometry sequences
+00-10: 23,201 scans of the same HDL-64E on the same car, driven through Karlsruhe's residential
+streets, its city centre, country roads and one highway (sequence 01). Its devkit
+(`semantic-kitti-api`, `config/semantic-kitti.yaml`, `content`) gives each class's share of all
+those points; `SEMANTIC_KITTI` below holds them, with "moving" classes folded into their static
+ones and lane marking into road, as the benchmark's own learning map does. The KITTI object
+frames were drawn from the same recordings, weighted to frames with objects in view (more city,
+fewer country roads), so the shares are a reference for the kind of streets, not a target to fit.
+
+Returns on an actor are counted by its class (`simgen.world.Actor.cls`); every other return by
+the material of the surface its ray meets (`far_returns.materials_hit`, which names a return
+behind a facade's glass "window").
+
+`--front-boundaries` draws the front-yard boundaries of detached houses from the given list,
+each entry equally often, in place of `simgen.scenery.BOUNDARIES` (hedge, fence, wall, none;
+the side and rear boundaries from all but the last entry, as the generator does), in this
+process only: a diagnosis of what a mix no survey gives would do; no spec sets it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+
+import numpy as np
+from far_returns import materials_hit
+from tqdm import tqdm
+
+import simgen.scenery
+from simgen import lidar
+from simgen.sample import sample_world
+from simgen.spec import load_spec
+
+# Share of all points, SemanticKITTI sequences 00-10 (config/semantic-kitti.yaml, `content`,
+# moving classes folded in). The rest (0.0315) is unlabeled, outlier, other structure and other
+# object.
+SEMANTIC_KITTI = {
+    "road": 0.1988 + 0.0147,  # road, lane marking; parking (an area beside the road, same surface)
+    "sidewalk": 0.1439,
+    "other-ground": 0.0039,
+    "building": 0.1327,
+    "fence": 0.0724,
+    "vegetation": 0.2668,
+    "trunk": 0.0060,
+    "terrain": 0.0781,
+    "pole": 0.0029,
+    "traffic-sign": 0.0006,
+    "car": 0.0426,
+    "truck": 0.0022,
+    "other-vehicle": 0.0018 + 0.0004,  # other vehicle, motorcycle and motorcyclist
+    "person": 0.0003,
+    "bicycle, cyclist": 0.0003,
+}
+OTHER = "other (unlabeled, other structure or object)"
+
+BY_ACTOR = {"Car": "car", "Van": "car", "Truck": "truck", "Bus": "other-vehicle",
+            "Tram": "other-vehicle", "Misc": OTHER, "Pedestrian": "person",
+            "Cyclist": "bicycle, cyclist"}
+BY_MATERIAL = {
+    "asphalt": "road", "marking": "road",
+    "sidewalk": "sidewalk", "curb": "sidewalk",  # kerbs, and the low concrete walls of front yards
+    "facade": "building", "window": "building",
+    "fence": "fence",
+    "foliage": "vegetation",
+    "bark": "trunk",
+    "verge": "terrain", "forest_floor": "terrain", "sand": "terrain",
+    "pole": "pole",
+    "sign_white": "traffic-sign", "sign_yellow": "traffic-sign", "sign_red": "traffic-sign",
+    "sign_blue": "traffic-sign",
+    "bike_frame": "bicycle, cyclist",  # the cycle stands' parked bicycles
+}
+
+
+def classes_of(world, scan: lidar.LidarScan, sensor: lidar.LidarSpec) -> np.ndarray:
+    """SemanticKITTI class name per return."""
+    cls = {a.id: BY_ACTOR.get(a.cls, OTHER) for a in world.actors}
+    names = materials_hit(world, sensor, scan)
+    out = np.array([BY_MATERIAL.get(n, OTHER) for n in names.tolist()], dtype=object)
+    on_actor = scan.actor_id > 0
+    out[on_actor] = [cls[int(i)] for i in scan.actor_id[on_actor]]
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--spec", default="scenes/urban.yaml")
+    ap.add_argument("--frames", type=int, default=24)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--front-boundaries", help="comma-separated kinds (hedge, fence, wall, none)")
+    args = ap.parse_args()
+    if args.front_boundaries:
+        kinds = tuple(args.front_boundaries.split(","))
+        unknown = set(kinds) - set(simgen.scenery.BOUNDARIES)
+        if unknown:
+            ap.error(f"--front-boundaries: unknown kinds {sorted(unknown)} "
+                     f"(known: {', '.join(simgen.scenery.BOUNDARIES)})")
+        simgen.scenery.BOUNDARIES = kinds
+    spec = load_spec(args.spec)
+    sensor = lidar.preset(spec.lidar.preset, beams=spec.lidar.beams, max_range=spec.lidar.max_range)
+    counts, n = collections.Counter(), 0
+    for i in tqdm(range(args.frames), desc="frames"):
+        world = sample_world(spec, args.seed, i)
+        swept = lidar.scan(world, sensor, 0)
+        counts.update(classes_of(world, swept, sensor).tolist())
+        n += len(swept.points)
+    print(f"{args.spec}, {args.frames} frames (seed {args.seed}), {n / args.frames:,.0f} returns a frame"
+          + (f", front boundaries drawn from {args.front_boundaries}" if args.front_boundaries else ""))
+    print("| class | generated (%) | SemanticKITTI, sequences 00-10 (%) | ratio |\n|---|---:|---:|---:|")
+    for name, ref in sorted(SEMANTIC_KITTI.items(), key=lambda kv: -kv[1]):
+        share = counts[name] / n
+        print(f"| {name} | {100 * share:.2f} | {100 * ref:.2f} | {share / ref:.2f} |")
+    rest = 1.0 - sum(SEMANTIC_KITTI.values())
+    print(f"| {OTHER} | {100 * counts[OTHER] / n:.2f} | {100 * rest:.2f} | {counts[OTHER] / n / rest:.2f} |")
+    grouped = {"ground (road, sidewalk, other ground, terrain)":
+               ("road", "sidewalk", "other-ground", "terrain"),
+               "vegetation and trunks": ("vegetation", "trunk"),
+               "vehicles": ("car", "truck", "other-vehicle")}
+    for label, keys in grouped.items():
+        print(f"{label}: generated {100 * sum(counts[k] for k in keys) / n:.1f} %, "
+              f"SemanticKITTI {100 * sum(SEMANTIC_KITTI[k] for k in keys):.1f} %")
+
+
+if __name__ == "__main__":
+    main()
