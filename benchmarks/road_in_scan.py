@@ -26,7 +26,6 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from kitti.calib import _apply
 from kitti.dataset import KittiDataset
 from kitti.rings import recover_rings
 from lifter.ground import fit_ground_plane, height_above
@@ -45,11 +44,11 @@ def scan_rows(root: Path, frames: int | None) -> tuple[np.ndarray, np.ndarray]:
     planes, rings = [], []
     for fid in tqdm(ds.ids()[:frames], desc=root.name, leave=False):
         v, calib = ds.velodyne(fid)[:, :3].astype(np.float64), ds.calib(fid)
-        rect = _apply(calib.velo_to_rect, v)
+        rect = calib.lidar_to_rect(v)
         plane = fit_ground_plane(rect)
         up = calib.velo_to_rect[:3, :3].T @ plane[:3]  # the plane's normal in the LiDAR frame,
         up *= np.sign(up[2]) / np.linalg.norm(up)  # pointing up
-        origin = _apply(calib.velo_to_rect, np.zeros((1, 3)))
+        origin = calib.lidar_to_rect(np.zeros((1, 3)))
         planes.append((np.degrees(np.arctan2(-up[0], up[2])), np.degrees(np.arctan2(-up[1], up[2])),
                        abs(float(height_above(origin, plane)[0])) / np.linalg.norm(plane[:3])))
         h = height_above(rect, plane)
