@@ -7,8 +7,10 @@ is the excess one kind of surface, or the same view open more often?).
 
 Far: the range from the sensor beyond `--range`, and the bearings' sectors, as the fidelity
 report's rows (`testbed.fidelity.lidar`: FAR_M, SECTOR_DEG), which give their medians per frame;
-this adds the pooled heights. Height: z in the LiDAR frame plus KITTI's mounting height (1.73 m),
-i.e. above a flat road under the sensor.
+this adds the pooled heights. Height: above a level road 1.73 m under the sensor (KITTI's
+mounting height), measured along the rectified camera's vertical, which is level in KITTI's frames
+and in generated ones; the LiDAR itself is tilted 0.6 deg forward and 0.6 deg left of it
+(`simgen.rigs.kitti_lidar_tilt`), so its own z would read the far road 0.4 m high at 40 m ahead.
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from kitti.velodyne import read_velodyne
+from kitti.dataset import KittiDataset
 from simgen.rigs import KITTI_LIDAR_HEIGHT
 from testbed.fidelity.lidar import FAR_M, SECTOR_DEG
 
@@ -31,12 +33,13 @@ def far_returns(root: Path, far: float) -> tuple[np.ndarray, np.ndarray]:
     """Every frame's heights of its returns beyond `far` (pooled) and (frames, 4) shares of its
     returns beyond `far` ahead, beside, behind, and in all."""
     heights, shares = [], []
-    files = sorted((root / "training" / "velodyne").glob("*.bin"))
-    for f in tqdm(files, desc=root.name, leave=False):
-        p = read_velodyne(f)[:, :3].astype(np.float64)
+    ds = KittiDataset(root)
+    for fid in tqdm(ds.ids(), desc=root.name, leave=False):
+        p, calib = ds.velodyne(fid)[:, :3].astype(np.float64), ds.calib(fid)
         beyond = np.sqrt(np.einsum("ij,ij->i", p, p)) > far
         bearing = np.degrees(np.abs(np.arctan2(p[:, 1], p[:, 0])))
-        heights.append(p[beyond, 2] + KITTI_LIDAR_HEIGHT)
+        down = calib.lidar_to_rect(np.vstack([np.zeros((1, 3)), p[beyond]]))[:, 1]  # rect y points down
+        heights.append(down[0] + KITTI_LIDAR_HEIGHT - down[1:])
         ahead, behind = bearing < SECTOR_DEG, bearing >= 180.0 - SECTOR_DEG
         sectors = [ahead, ~ahead & ~behind, behind]
         shares.append([(beyond & s).sum() / len(p) for s in sectors] + [beyond.mean()])
