@@ -126,9 +126,9 @@ CURTAIN_REFLECTIVITY = 0.55
 # 0.6 of a 905 nm beam (clear float glass about 0.9). A pane has no diffuse echo of its own (a
 # clean pane reflects specularly, 4 % per surface, away from the sensor unless it faces it
 # exactly): the beam goes on (simgen.lidar.scan). Its `reflectivity` is what a beam that ends
-# inside the vehicle reads, the interior below the window line: trim and upholstery, mostly
-# black or dark grey, 0.13 by the carbon-black rule for a dark grey (0.1) and seen as clutter
-# (no fall-off with incidence).
+# inside the vehicle reads (on the seats, head restraints and trim the camera's glass shows, or
+# below the window line): upholstery and trim, mostly black or dark grey, 0.13 by the
+# carbon-black rule for a dark grey (0.1) and seen as clutter (no fall-off with incidence).
 GLASS = Material("glass", (0.04, 0.05, 0.07), nir_reflectivity((0.1, 0.1, 0.1)),
                  incidence_exponent=0.0, transmittance=0.6)
 # Tyre rubber is filled with carbon black: about 0.03 at 905 nm.

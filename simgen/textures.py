@@ -233,9 +233,32 @@ GLASS_TILE_M = 2.4
 # Seats: head restraints about 0.25-0.28 m wide and 0.2 m tall (ECE R17 asks at least 0.17 m
 # wide), their tops about 0.75 m above the seat; two a row, 0.5-0.6 m apart (the seats' centres).
 HEADREST_W, HEADREST_PITCH = 0.26, 0.55
+# The glass tile's rows, from its top (v): the mirrored sky above GLASS_SKY_V, the scene through the
+# far windows down to GLASS_TRIM_V, trim and cushions below; seat backs SEAT_BACK_W wide from
+# SEAT_BACK_V down, head restraints HEADREST_V +- HEADREST_HALF_V (a pane about 0.9 m tall).
+GLASS_SKY_V, GLASS_TRIM_V, SEAT_BACK_V, SEAT_BACK_W = 0.2, 0.65, 0.5, 0.44
+HEADREST_V, HEADREST_HALF_V = 0.36, 0.08
 # EU plates (DIN 74069): 520 x 110 mm, a blue band 40 mm wide on the left, black characters 75 mm
 # tall (drawn 40 mm wide) inside a thin black rim (drawn 4 mm); up to 8 characters (a judgement).
 PLATES_PER_TILE, PLATE_CHARS = 4, 8
+
+
+def _seat_pitch() -> float:
+    """Seat spacing along the glass tile: whole seats per tile, so the tile has no seam."""
+    return GLASS_TILE_M / round(GLASS_TILE_M / HEADREST_PITCH)
+
+
+def glass_cabin_bands() -> np.ndarray:
+    """(3, 3) rows (h0, h1, share): over the heights h0..h1 of a car's pane (0 at its foot, 1 at
+    its top, as the renderer maps the tile), the share of the pane's length where the glass tile
+    shows the cabin (trim and cushions, seat backs, head restraints, their corners taken square)
+    rather than the scene through the far windows: where the LiDAR's beam ends inside (simgen.lidar).
+    """
+    pitch = _seat_pitch()
+    return np.array([[0.0, 1.0 - GLASS_TRIM_V, 1.0],
+                     [1.0 - GLASS_TRIM_V, 1.0 - SEAT_BACK_V, SEAT_BACK_W / pitch],
+                     [1.0 - HEADREST_V - HEADREST_HALF_V, 1.0 - HEADREST_V + HEADREST_HALF_V,
+                      HEADREST_W / pitch]])
 
 
 def _glass(rng: np.random.Generator) -> np.ndarray:
@@ -245,13 +268,14 @@ def _glass(rng: np.random.Generator) -> np.ndarray:
     stands around (low-frequency streaks) over all of it."""
     v = (np.arange(SIZE) + 0.5)[:, None] / SIZE  # 0 at the pane's top
     u_m = (np.arange(SIZE) + 0.5)[None, :] / SIZE * GLASS_TILE_M
-    m = np.where(v < 0.2, 1.15, np.where(v < 0.65, 1.4, 0.6)) * np.exp(0.25 * _fractal(rng, 2.2, aspect=0.25))
-    pitch = GLASS_TILE_M / round(GLASS_TILE_M / HEADREST_PITCH)  # whole seats per tile: no seam
+    m = np.where(v < GLASS_SKY_V, 1.15, np.where(v < GLASS_TRIM_V, 1.4, 0.6)) * np.exp(
+        0.25 * _fractal(rng, 2.2, aspect=0.25))
+    pitch = _seat_pitch()
     centre = np.abs((u_m % pitch) - pitch / 2)
     corner = 0.06  # rounded corners, m
     dx = np.maximum(centre - (HEADREST_W / 2 - corner), 0.0)
-    dy = np.maximum(np.abs(v - 0.36) * 0.9 - (0.08 * 0.9 - corner), 0.0)  # the pane about 0.9 m tall
-    seat = (np.hypot(dx, dy) < corner) | ((centre < 0.22) & (v > 0.5))
+    dy = np.maximum(np.abs(v - HEADREST_V) * 0.9 - (HEADREST_HALF_V * 0.9 - corner), 0.0)  # 0.9 m pane
+    seat = (np.hypot(dx, dy) < corner) | ((centre < SEAT_BACK_W / 2) & (v > SEAT_BACK_V))
     m = np.where(seat, 0.45 * (1.0 + 0.05 * _grain(rng, 1.5)), m)
     return np.repeat(m[..., None], 3, axis=2) * np.array([0.97, 1.0, 1.04])
 

@@ -50,19 +50,23 @@ def _pane(t_n, c, r0):
 
 @numba.njit(cache=True, nogil=True)
 def pass_prepare(cand, u, prim, tfar, ng, origins, d_w, inv_ng, tri_mat, mat_t, mat_p, tri_glass,
-                 glass_planes, loss, pane_max, r0, step):
+                 glass_planes, loss, pane_max, r0, step, cabin, cabin_depth):
     """One round of pass-through, before its query, over the rays `cand` (their hit: `prim`,
     `tfar`, `ng`). Glass lets the ray through the pane where it entered (`loss`, in place,
     takes the pane's two-way transmittance) and the ray crosses the glass solid to the nearest
     face it heads out through (its face planes). A solid thinner than `pane_max` is that one
-    pane: the ray goes on. A thicker one is a vehicle's glasshouse: leaving through a face that
-    looks down (normal z < -0.5), the ray goes on into the body below the window line, i.e. the
-    interior, and returns from there (`tfar` moves to that point; the glass material's
-    reflectivity is the interior's); leaving through a side or the top, it passes the far pane
+    pane: the ray goes on. A thicker one is a vehicle's glasshouse. Entering it at height h of
+    the pane (0 on its lowest face, 1 on its highest, the faces whose normals point most down
+    and most up), the ray ends on the cabin `cabin_depth` behind the pane (or at its far side,
+    if nearer) where its uniform `u` is below the share of that height band the cabin fills
+    (`cabin` rows h0, h1, share; textures.glass_cabin_bands); leaving through a face that looks
+    down (normal z < -0.5), it goes on into the body below the window line, the interior, and
+    returns from there. Either way `tfar` moves to that point (the glass material's
+    reflectivity is the interior's). Leaving through a side or the top, it passes the far pane
     too (`loss` takes that pane's transmittance) and goes on. A porous material lets the ray go
-    on where the ray's uniform `u` is below its porosity. Returns the rays that go on, and the
-    origins, directions and start ranges (from the sensor) of their next query, `step` beyond
-    the surface they leave."""
+    on where `u` is below its porosity. Returns the rays that go on, and the origins,
+    directions and start ranges (from the sensor) of their next query, `step` beyond the
+    surface they leave."""
     n = cand.shape[0]
     sel = np.empty(n, np.int64)
     o2 = np.empty((n, 3), np.float32)
@@ -82,11 +86,18 @@ def pass_prepare(cand, u, prim, tfar, ng, origins, d_w, inv_ng, tri_mat, mat_t, 
             best = np.inf
             c_out = 1.0
             z_out = 0.0
+            z_lo, z_hi, below, above = 2.0, -2.0, 0.0, 0.0
             for f in range(glass_planes.shape[1]):
                 nx, ny, nz = glass_planes[g, f, 0], glass_planes[g, f, 1], glass_planes[g, f, 2]
+                inside = glass_planes[g, f, 3] - (nx * x0 + ny * x1 + nz * x2)
+                if nx != 0.0 or ny != 0.0 or nz != 0.0:  # not a padding row
+                    if nz < z_lo:
+                        z_lo, below = nz, inside
+                    if nz > z_hi:
+                        z_hi, above = nz, inside
                 nd = nx * d_w[i, 0] + ny * d_w[i, 1] + nz * d_w[i, 2]
                 if nd > 1e-6:
-                    dist = (glass_planes[g, f, 3] - (nx * x0 + ny * x1 + nz * x2)) / nd
+                    dist = inside / nd
                     if dist < best:
                         best = dist
                         c_out = nd
@@ -95,6 +106,15 @@ def pass_prepare(cand, u, prim, tfar, ng, origins, d_w, inv_ng, tri_mat, mat_t, 
             c_in = abs(ng[i, 0] * d_w[i, 0] + ng[i, 1] * d_w[i, 1] + ng[i, 2] * d_w[i, 2]) * inv_ng[t]
             tr = _pane(mat_t[m], c_in, r0)
             if depth >= pane_max:
+                h = max(below, 0.0) / max(max(below, 0.0) + max(above, 0.0), 1e-9)
+                share = 0.0
+                for b in range(cabin.shape[0]):
+                    if cabin[b, 0] <= h < cabin[b, 1]:
+                        share = cabin[b, 2]
+                if u[c] < share:  # seats, head restraints, trim: the cabin returns
+                    loss[i] *= tr * tr
+                    tfar[i] = s + min(cabin_depth, depth)
+                    continue
                 if z_out < -0.5:  # into the body below the windows: the interior returns
                     loss[i] *= tr * tr
                     tfar[i] = s + depth

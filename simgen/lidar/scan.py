@@ -5,7 +5,9 @@ Per ray, in order:
 1. the exact first hit on the world's meshes (Embree, origin moving with the ego vehicle);
 2. pass-through (`_pass_through`): a beam that meets glass goes on (a clean pane reflects
    specularly, away from the sensor, so its own echo is never reported) and the echo from behind
-   loses the pane's two-way transmittance; a beam that meets a porous material (leaves) goes on
+   loses the pane's two-way transmittance; in a car's glasshouse it ends on the cabin where the
+   camera's glass shows seats, head restraints or trim (CABIN), else it passes the far pane too or
+   goes down into the body below the windows; a beam that meets a porous material (leaves) goes on
    with probability `porosity`. Those rays are cast again, batched, from PASS_STEP behind the
    hit, up to MAX_PASSES surfaces; a ray that goes on into nothing returns nothing. A beam that
    ends on a façade inside one of its windows (the camera's façade tiles show where: windows.py)
@@ -47,6 +49,7 @@ from functools import lru_cache
 import numpy as np
 
 from ..materials import CURTAIN_REFLECTIVITY, ROOM_REFLECTIVITY, WINDOW_TRANSMITTANCE
+from ..textures import glass_cabin_bands
 from ..world import World
 from .kernels import detect_rays, pass_apply, pass_candidates, pass_prepare, read_returns, window_returns
 from .platform import hidden_rays
@@ -64,6 +67,12 @@ PASS_STEP = 1e-3  # m
 # window boxes are 2 to 8 cm thick); a thicker one (a car's glasshouse) has a pane at each side.
 PANE_MAX = 0.1  # m
 MAX_PASSES = 4  # surfaces one ray may go on through: a crown's two faces, two glasshouses
+# A car's cabin where the camera's glass shows it (trim and cushions, seat backs, head restraints:
+# textures.glass_cabin_bands) ends the beam CABIN_DEPTH_M behind the pane it entered: a side window
+# stands about 0.1 m outboard of the door trim, an outboard seat about 0.1 m inboard of it, and a
+# rear window 0.2-0.4 m from the head restraints behind it (no survey: car drawings).
+CABIN = glass_cabin_bands()
+CABIN_DEPTH_M = 0.25
 # Fresnel reflectance of glass at normal incidence, ((n - 1) / (n + 1)) ** 2 for n = 1.52 (soda-lime
 # glass at 905 nm); Schlick's approximation gives its rise towards grazing incidence.
 GLASS_R0 = 0.0426
@@ -133,7 +142,7 @@ def _pass_through(tgt: Target, spec: LidarSpec, rng: np.random.Generator, origin
         sel, o2, d2, start = pass_prepare(cand, u, prim, tfar, ng, origins, d_w, tgt.tri_inv_ng,
                                           tgt.tri_mat, tgt.mat_transmittance, tgt.mat_porosity,
                                           tgt.tri_glass, tgt.glass_planes, loss, PANE_MAX, GLASS_R0,
-                                          PASS_STEP)
+                                          PASS_STEP, CABIN, CABIN_DEPTH_M)
         if not len(sel):
             cand = sel
             break

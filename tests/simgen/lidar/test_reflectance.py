@@ -239,23 +239,58 @@ def test_glass_pane_passes_beams_with_its_two_way_loss():
     assert np.any(scan(_world(_wall(45.0, _mat(0.1))), _spec(), 0).points[:, 0] > 40)
 
 
-def test_glasshouse_passes_two_panes_or_ends_in_the_interior():
-    # a glass solid 2 m deep from x = 5 to 7, z = 1.2 to 2.5 (the sensor at 1.73 m): a beam
-    # 2 deg down crosses it and passes both panes (0.5 * 0.6^4 = 0.0648 -> 0.06 on the wall at
-    # 20 m, straight ahead); a beam 5 deg down leaves through its bottom at z = 1.2 into the
-    # vehicle body, and returns from there with the interior's reading (GLASS.reflectivity
-    # 0.13) after one pane: 0.13 * 0.36 = 0.047 -> 0.05
-    house = Part(trimesh.creation.box(bounds=[[5, -3, 1.2], [7, 3, 2.5]]), GLASS)
+def _entries(s, x0: float):
+    """Per return of a scan from (0, 0, 1.73): its ray's direction (from its ring's elevation and
+    its azimuth), and the range, height and y where that ray crosses the plane x = x0."""
+    el = np.radians(np.asarray(_spec().elevations_deg)[s.ring])
+    az = s.azimuth.astype(np.float64)
+    d = np.c_[np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)]
+    t = x0 / d[:, 0]
+    return d, t, 1.73 + t * d[:, 2], t * d[:, 1]
+
+
+def test_glasshouse_ends_beams_on_the_cabin_where_the_glass_shows_it():
+    # a glass solid 2 m deep from x = 5 to 7, z = 0 to 2 (the sensor at 1.73 m), a wall at 20 m.
+    # A beam entering the front face at height h = z / 2 of the pane ends 0.25 m behind it (the
+    # cabin) on the share of that height the camera's glass tile shows as cabin: all of it below
+    # h = 0.35 (trim, cushions), 0.44 of every 0.6 m below 0.5 (seat backs), 0.26 of every 0.6 m
+    # at 0.56-0.72 (head restraints), none elsewhere; it reads the interior's 0.13 after one pane.
+    # The others pass both panes to the wall (0.5 * 0.6^4 = 0.0648 -> 0.06 straight ahead).
+    house = Part(trimesh.creation.box(bounds=[[5, -3, 0.0], [7, 3, 2.0]]), GLASS)
     s = scan(_world(house, _wall(20.0, _mat(0.5))), _spec(), 0)
-    pts, v = s.points, s.points[:, 3]
-    el = np.degrees(np.arctan2(pts[:, 2] - 0.0, np.hypot(pts[:, 0], pts[:, 1])))
-    inside = (pts[:, 0] > 4.9) & (pts[:, 0] < 7.1)
-    assert np.all(np.abs(pts[inside, 2] - (1.2 - 1.73)) < 1e-3)  # every one on the bottom face
-    straight = (np.abs(pts[:, 1]) < 0.3) & (np.abs(pts[:, 0] - 20.0) < 0.01) & (np.abs(el) < 0.5)
-    assert straight.sum() > 0 and np.all(v[straight] == np.float32(0.06))
-    under = inside & (np.abs(pts[:, 1]) < 0.3)
-    assert under.sum() > 0
-    c_in = pts[under, 0] / _r(s)[under]  # incidence on the front face x = 5
+    d, t, z, y = _entries(s, 5.0)
+    r, v = _r(s), s.points[:, 3]
+    front = (np.abs(y) < 2.5) & (z > 0.2)  # lower, the solid's floor is nearer than 0.25 m
+    cabin = np.abs(r - (t + 0.25)) < 1e-3
+    assert np.all(cabin[front] | (np.abs(s.points[front, 0] - 20.0) < 0.01))
+    h = z / 2.0
+    for lo, hi, share in ((0.1, 0.35, 1.0), (0.35, 0.5, 0.44 / 0.6), (0.5, 0.56, 0.0),
+                          (0.56, 0.72, 0.26 / 0.6), (0.72, 1.0, 0.0)):
+        band = front & (h >= lo + 0.005) & (h < hi - 0.005)
+        assert band.sum() > 300
+        if share in (0.0, 1.0):
+            assert np.all(cabin[band] == bool(share))
+        else:  # an independent draw per beam: within 4 binomial sds of the share
+            assert abs(cabin[band].mean() - share) < 4 * np.sqrt(share * (1 - share) / band.sum())
+    c_in = d[front & cabin, 0]  # incidence on the front face x = 5
     want = np.round(0.13 * np.array([_pane(c) ** 2 for c in c_in]) * 100) / 100
-    assert np.all(np.abs(v[under] - want) < 0.0101)
+    assert np.all(np.abs(v[front & cabin] - want) < 0.0101)
+    level = np.abs(d[:, 2]) < 0.009
+    straight = (np.abs(s.points[:, 1]) < 0.3) & (np.abs(s.points[:, 0] - 20.0) < 0.01) & level
+    assert straight.sum() > 0 and np.all(v[straight] == np.float32(0.06))
     assert GLASS.reflectivity == pytest.approx(0.13)
+
+
+def test_glasshouse_beam_that_leaves_through_its_bottom_returns_from_the_interior():
+    # a glass solid from x = 1 to 6, z = 0.5 to 1.5: beams 12-25 deg down, nearly straight ahead,
+    # enter its front face at h = 0.74-1.0 of the pane (no cabin there: the scene through the far windows) and leave
+    # through its bottom into the vehicle body below the windows, returning from there with the
+    # interior's reading after one pane: 0.13 * tr(c)^2
+    house = Part(trimesh.creation.box(bounds=[[1, -3, 0.5], [6, 3, 1.5]]), GLASS)
+    s = scan(_world(house), _spec(), 0)
+    d, t, z, y = _entries(s, 1.0)
+    steep = (np.abs(y) < 0.3) & (d[:, 2] < np.sin(np.radians(-12.0))) & (z < 1.45)  # not the top face
+    assert steep.sum() > 100 and np.all((z[steep] - 0.5) / 1.0 > 0.72)
+    assert np.all(np.abs(s.points[steep, 2] - (0.5 - 1.73)) < 1e-3)  # every one on the bottom face
+    want = np.round(0.13 * np.array([_pane(c) ** 2 for c in d[steep, 0]]) * 100) / 100
+    assert np.all(np.abs(s.points[steep, 3] - want) < 0.0101)
