@@ -263,7 +263,7 @@ def glass_cabin_bands() -> np.ndarray:
 
 def _glass(rng: np.random.Generator) -> np.ndarray:
     """Top fifth: the mirrored sky, streaked; the middle: the bright scene seen through the far
-    windows, with the seats dark against it (a back 0.45 m wide rising from the trim, a head
+    windows, with the seats dark against it (a back SEAT_BACK_W wide rising from the trim, a head
     restraint above it); the bottom third: trim and seat cushions, dark. Reflections of what
     stands around (low-frequency streaks) over all of it."""
     v = (np.arange(SIZE) + 0.5)[:, None] / SIZE  # 0 at the pane's top
