@@ -22,11 +22,12 @@ from simgen.sample import sample_world
 from simgen.spec import load_spec
 
 
-def materials_hit(world, spec: lidar.LidarSpec, scan: lidar.LidarScan) -> np.ndarray:
+def materials_hit(world, spec: lidar.LidarSpec, scan: lidar.LidarScan, tgt=None) -> np.ndarray:
     """Material name of the surface behind each return, 'none' where no triangle; 'window' where
     the ray meets a façade that can hold windows and the return lies more than 10 cm beyond it (a
-    curtain or a room behind the glass: simgen.lidar.windows)."""
-    tgt = build_target(world, spec)
+    curtain or a room behind the glass: simgen.lidar.windows). `tgt`: the scan's own
+    build_target(world, spec), if at hand."""
+    tgt = tgt if tgt is not None else build_target(world, spec)
     poses = world.lidar_pose_at(scan.time.astype(np.float64))  # the sensor at each firing
     origin = poses[:, :3, 3]
     d = np.einsum("nij,nj->ni", poses[:, :3, :3], scan.points[:, :3].astype(np.float64))

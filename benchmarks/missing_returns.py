@@ -46,7 +46,8 @@ def main() -> None:
     met, n = collections.Counter(), 0
     for i in tqdm(range(args.frames), desc="frames"):
         world = sample_world(spec, args.seed, i)
-        swept = lidar.scan(world, sensor, 0)
+        target = build_target(world, sensor)
+        swept = lidar.scan(world, sensor, 0, target)
         returned = set(zip(swept.ring.tolist(), swept.azimuth.tolist()))
         miss = np.array([j for j in fired
                          if (int(rays.ring[j]), float(rays.azimuth[j])) not in returned], int)
@@ -55,7 +56,7 @@ def main() -> None:
         miss = miss[~hidden[miss]]
         if not len(miss):
             continue
-        pose, target = world.lidar_pose, build_target(world, sensor)
+        pose = world.lidar_pose
         hit = target.scene.run(np.repeat(pose[None, :3, 3], len(miss), 0).astype(np.float32),
                                (rays.dirs[miss] @ pose[:3, :3].T).astype(np.float32), output=1)
         for prim, t in zip(hit["primID"], hit["tfar"]):

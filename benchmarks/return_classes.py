@@ -78,10 +78,10 @@ BY_MATERIAL = {
 }
 
 
-def classes_of(world, scan: lidar.LidarScan, sensor: lidar.LidarSpec) -> np.ndarray:
-    """SemanticKITTI class name per return."""
+def classes_of(world, scan: lidar.LidarScan, sensor: lidar.LidarSpec, target) -> np.ndarray:
+    """SemanticKITTI class name per return (`target`: the scan's own Embree scene)."""
     cls = {a.id: BY_ACTOR.get(a.cls, OTHER) for a in world.actors}
-    names = materials_hit(world, sensor, scan)
+    names = materials_hit(world, sensor, scan, target)
     out = np.array([BY_MATERIAL.get(n, OTHER) for n in names.tolist()], dtype=object)
     on_actor = scan.actor_id > 0
     out[on_actor] = [cls[int(i)] for i in scan.actor_id[on_actor]]
@@ -107,8 +107,9 @@ def main() -> None:
     counts, n = collections.Counter(), 0
     for i in tqdm(range(args.frames), desc="frames"):
         world = sample_world(spec, args.seed, i)
-        swept = lidar.scan(world, sensor, 0)
-        counts.update(classes_of(world, swept, sensor).tolist())
+        target = lidar.build_target(world, sensor)
+        swept = lidar.scan(world, sensor, 0, target)
+        counts.update(classes_of(world, swept, sensor, target).tolist())
         n += len(swept.points)
     print(f"{args.spec}, {args.frames} frames (seed {args.seed}), {n / args.frames:,.0f} returns a frame"
           + (f", front boundaries drawn from {args.front_boundaries}" if args.front_boundaries else ""))

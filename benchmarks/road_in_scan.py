@@ -12,8 +12,8 @@ LiDAR 0.6 deg forward and 0.6 deg to the left of the level rectified camera
 (`simgen.rigs.kitti_lidar_tilt`), so a level road rises ahead in its scans.
 
 Beams ahead: for each ring (`kitti.rings.recover_rings`, median elevation e) whose flat-road
-intercept d = 1.73 m / tan(-e) lies 25-80 m away, its firings within 20 deg of ahead (2000 a
-turn, the HDL-64E's at 10 Hz: `simgen.lidar` preset `hdl64e`) split by what they returned:
+intercept d = 1.73 m / tan(-e) lies 25-80 m away, its firings within 20 deg of ahead (as many a
+turn as the `simgen.lidar` preset `hdl64e` fires, KITTI's HDL-64E at 10 Hz) split by what they returned:
 ground near the intercept (0.75-1.33 d, within 0.25 m of the fitted plane), ground nearer
 (a road rising ahead, or a tilted sensor), something else nearer, or nothing at all.
 """
@@ -29,9 +29,10 @@ from tqdm import tqdm
 from kitti.dataset import KittiDataset
 from kitti.rings import recover_rings
 from lifter.ground import fit_ground_plane, height_above
+from simgen.lidar import preset
 from simgen.rigs import KITTI_LIDAR_HEIGHT
 
-FIRINGS_PER_DEG = 2000 / 360.0
+FIRINGS_PER_DEG = preset("hdl64e").columns / 360.0
 AHEAD_DEG = 20.0
 BANDS = ((25, 35), (35, 45), (45, 55), (55, 80))
 GROUND_M = 0.25
