@@ -3,9 +3,9 @@
 Positions on the road are (s, d): s the arc length along the ego-lane centre line (heading +x
 at s = 0), d the lateral offset to the left of it. Offset curves of a circle are concentric
 circles, so every lane, curb and sidewalk edge is exact. Right-hand traffic: the ego direction's
-lanes lie right of the divider, the oncoming lanes left of it; a parking strip lines each curb
-when the spec parks cars. An intersection is a straight road crossed at s = cross_s by a
-perpendicular street (world x = cross_s) with lanes of the same width.
+lanes lie right of the divider, the oncoming lanes left of it; when the spec parks cars, a
+parking strip lines each curb that `parking_sides` names. An intersection is a straight road
+crossed at s = cross_s by a perpendicular street (world x = cross_s) with lanes of the same width.
 
 The road need not be flat: a `VerticalProfile` gives its height z(s) along the centre line, the
 same across it, so the cross street is level along its length. The world's z axis stays the
@@ -77,25 +77,32 @@ class RoadLayout:
     cross_lanes: int = 0  # per direction on the cross street
     profile: VerticalProfile | None = None  # None: the whole world is flat at z = 0
     crown: float = 0.0  # cross slope each side of the crown (fall per metre); 0: flat across
+    parking_sides: str = "both"  # the curbs a parking strip lines (with `parking`): right, left, none
 
     def __post_init__(self):
         if isinstance(self.profile, dict):  # rebuilt from its to_dict() form (meta/)
             object.__setattr__(self, "profile", VerticalProfile(**self.profile))
 
     def to_dict(self) -> dict:
-        """Plain values; a road flat along (across) has no `profile` (`crown`) key, as before
-        either existed."""
+        """Plain values; a road flat along (across) has no `profile` (`crown`) key, and one with
+        both parking strips no `parking_sides`, as before each existed."""
         out = asdict(self)
         if self.profile is None:
             del out["profile"]
         if self.crown == 0.0:
             del out["crown"]
+        if self.parking_sides == "both":
+            del out["parking_sides"]
         return out
 
     @property
     def flat(self) -> bool:
         """Whether the whole road is the plane z = 0."""
         return self.profile is None and self.crown == 0.0
+
+    def parks(self, side: int) -> bool:
+        """Whether a parking strip lines the right (side -1) or the left (+1) curb."""
+        return self.parking and self.parking_sides in ("both", "right" if side < 0 else "left")
 
     # Lateral positions (d) of the road's lines, left of the ego-lane centre.
     @property
@@ -104,7 +111,7 @@ class RoadLayout:
 
     @property
     def right_curb(self) -> float:
-        return self.right_lane_edge - (PARKING_WIDTH if self.parking else 0.0)
+        return self.right_lane_edge - (PARKING_WIDTH if self.parks(-1) else 0.0)
 
     @property
     def divider(self) -> float:
@@ -116,7 +123,7 @@ class RoadLayout:
 
     @property
     def left_curb(self) -> float:
-        return self.left_lane_edge + (PARKING_WIDTH if self.parking else 0.0)
+        return self.left_lane_edge + (PARKING_WIDTH if self.parks(1) else 0.0)
 
     @property
     def cross_half_width(self) -> float:

@@ -104,7 +104,7 @@ def _road_layout(spec: SceneSpec, v: dict) -> RoadLayout:
         lanes=lanes, lane_width=float(v["road.lane_width"]),
         ego_lane=min(int(v["road.ego_lane"]), lanes - 1),
         sidewalk_width=float(v["road.sidewalk_width"]), curb_height=float(v["road.curb_height"]),
-        parking=float(v["traffic.parked_per_100m"]) > 0,
+        parking=float(v["traffic.parked_per_100m"]) > 0, parking_sides=str(v["road.parking_sides"]),
         s_min=-spec.road.length_behind,
         s_max=max(spec.road.length_ahead, float(v["traffic.max_distance"]) + 20.0),
         cross_s=float(v["road.intersection_distance"]) if kind == "intersection" else None,
@@ -254,7 +254,7 @@ class _Traffic:
         road, rng = self.road, self.rng
         if not dens > 0:
             return
-        for side in (-1, 1):
+        for side in [k for k in (-1, 1) if road.parks(k)]:
             s = self.s_lo + rng.exponential(100.0 / dens)
             while s < self.s_hi:
                 cls = _pick_class(PARKED_MIX, rng)

@@ -17,8 +17,8 @@ import trimesh
 
 # The scenery's materials at 905 nm and their sources: simgen.materials.
 from .materials import (ASPHALT, BARK, CONCRETE, FACADE_REFLECTIVITY, FENCE, FOLIAGE,  # noqa: F401
-                        FOREST_FLOOR, MARKING, METAL, SAND, SIDEWALK, SIGN_BLUE, SIGN_RED, SIGN_WHITE,
-                        SIGN_YELLOW, TRIM, VERGE, paint_material, signal_lens)
+                        FOREST_FLOOR, MARKING, METAL, SAND, SHRUB_MASS, SIDEWALK, SIGN_BLUE, SIGN_RED,
+                        SIGN_WHITE, SIGN_YELLOW, TRIM, VERGE, paint_material, signal_lens)
 from .meshes import Shape, bicycle, box, extrude
 from .relief import drape_parts
 from .road import RoadLayout
@@ -324,6 +324,15 @@ CLEAR_FOOTWAY, CLEAR_ROAD = 2.5, 4.5
 # Garden trees branch lower: nursery grades of fruit and garden trees have clear stems of 1.0-1.6 m
 # (half-standard) to 1.8-2.0 m (standard).
 GARDEN_CROWN_BASE = (1.0, 2.0)
+# Belts of trees and shrubs along the street (German "Gehoelzstreifen", "Strassenbegleitgruen"):
+# a grass margin behind the sidewalk, then a closed mass of shrubs 2-5 m tall with small trees
+# standing in it, 3-10 m deep, branched to the ground (hedgerows and roadside plantings are not
+# pruned from 1 March to 30 September, BNatSchG section 39(5), so on KITTI's drives they stood
+# in full leaf and growth). The sizes are typical of such plantings, not a survey. The LiDAR
+# sees the shrubs as one closed leaf mass (simgen.materials.SHRUB_MASS).
+GREEN_MARGIN, GREEN_DEPTH = (0.5, 2.0), (3.0, 10.0)
+SHRUB_BELT_RADIUS, SHRUB_BELT_HEIGHT = (1.0, 2.5), (2.0, 5.0)
+GREEN_M2_PER_TREE = 60.0  # one small tree among the shrubs per 60 m2 of belt: a judgement
 # Car parks (EAR 05): perpendicular stalls 2.50 x 5.00 m, aisles 6.00 m; a module is two stall
 # rows about an aisle, 1-2 modules deep, a 1.5 m planting strip before, between and after them
 # with one small- to medium-crowned tree per 4-5 stalls (Hamburg and Reinbek B-plans); a store
@@ -435,6 +444,7 @@ def _car_park_plan(road: RoadLayout, lot: Lot, rng: np.random.Generator) -> tupl
 _UNIT_BOX = _plain(trimesh.creation.box(extents=[1.0, 1.0, 1.0]))
 _UNIT_CYLINDER = _plain(trimesh.creation.cylinder(radius=1.0, height=1.0, sections=8))
 _UNIT_SPHERES = {k: _plain(trimesh.creation.icosphere(subdivisions=k, radius=1.0)) for k in (0, 1)}
+_SPHERE_TOP = float(_UNIT_SPHERES[0].vertices[:, 2].max())  # the coarse sphere's reach up (and down)
 
 
 def _placed(unit: Shape, scale, at) -> Shape:
@@ -669,6 +679,33 @@ def _open_land(road: RoadLayout, lot: Lot, rng: np.random.Generator, out: _Meshe
     out.add(FOLIAGE, _flip(face) if side < 0 else face)
 
 
+def _green(road: RoadLayout, lot: Lot, rng: np.random.Generator, out: _Meshes) -> None:
+    """A belt of shrubs and small trees behind a grass margin, the next street's buildings
+    across the block behind it. Shrubs stand on a grid a mean radius apart across the belt and
+    along it, each jittered by a third of that, so that they close into one mass; none reaches
+    in front of the margin, and the trees' crowns clear the footway (CLEAR_FOOTWAY)."""
+    side, ch, outer = lot.side, road.curb_height, _outer(road, lot.side)
+    q0 = rng.uniform(*GREEN_MARGIN)
+    q1 = q0 + rng.uniform(*GREEN_DEPTH)
+    s0, s1 = max(lot.s0, road.s_min), min(lot.s1, road.s_max)
+    r_mean = sum(SHRUB_BELT_RADIUS) / 2
+    for q in np.arange(q0 + r_mean, q1, r_mean):
+        for s in np.arange(s0 + r_mean / 2, s1, r_mean):
+            r, h = rng.uniform(*SHRUB_BELT_RADIUS), rng.uniform(*SHRUB_BELT_HEIGHT)
+            jitter = rng.uniform(-r_mean / 3, r_mean / 3, 2)
+            across = max(q0 + r, min(q + jitter[1], q1 - r / 2))
+            x, y = road.xy(s + jitter[0], outer + side * across)
+            fp = shapely.Point(x, y).buffer(r, 4)
+            if out.clear and any(fp.intersects(c) for c in out.clear):
+                continue
+            out.add(SHRUB_MASS, _placed(_UNIT_SPHERES[0], [r, r, h / 2 / _SPHERE_TOP], [x, y, ch + h / 2]))
+            out.obstacles.append(Obstacle(fp))
+    _small_trees(road, side, s0, s1, q0 + 1.0, q1 - 1.0,
+                 rng.poisson((s1 - s0) * (q1 - q0) / GREEN_M2_PER_TREE), rng, out,
+                 (CLEAR_FOOTWAY, CLEAR_FOOTWAY))
+    _across_block(road, lot, q1, rng, out, gardens=False)
+
+
 def _lot(road: RoadLayout, lot: Lot, setback: float, rng: np.random.Generator, out: _Meshes,
          guardrail: float = 0.0) -> None:
     """Everything standing on one lot (its ground is laid by _frontage_ground)."""
@@ -680,6 +717,8 @@ def _lot(road: RoadLayout, lot: Lot, setback: float, rng: np.random.Generator, o
         yard = rng.uniform(*FRONT_YARD)
         depth = _house_row(road, side, s0, s1, yard, rng, out, yard=True)
         _across_block(road, lot, yard + depth, rng, out)
+    elif lot.kind == "green":
+        _green(road, lot, rng, out)
     elif lot.kind == "open":
         _open_land(road, lot, rng, out, guardrail)
     else:  # car park: planting strips with trees, a hedge or nothing along the sidewalk, a store

@@ -16,7 +16,7 @@ from .factors import factor
 
 VEHICLE_CLASSES = ("Car", "Van", "Truck", "Bus")
 # Kinds of lot beside the street (clutter.frontage; simgen.scenery builds them).
-FRONTAGE_KINDS = ("row", "houses", "open", "car_park")
+FRONTAGE_KINDS = ("row", "houses", "open", "green", "car_park")
 
 
 class SpecError(ValueError):
@@ -54,6 +54,9 @@ class RoadSpec(Strict):
     cross_lanes_per_direction: factor(int, 1, 3) = 1  # on the cross street
     ego_lane: factor(int, 0, 3) = 0  # counted from the right curb, clipped to the lanes present
     sidewalk_width: factor(float, 1.0, 8.0) = 3.0
+    # The curbs lined by a parking strip (simgen.road.PARKING_WIDTH) when traffic.parked_per_100m
+    # is above 0: both, the right one (the ego's side), the left one, or none.
+    parking_sides: factor(str, options=("both", "right", "left", "none")) = "both"
     curb_height: factor(float, 0.0, 0.3) = 0.15
     length_ahead: float = Field(160.0, ge=20.0, le=400.0)
     length_behind: float = Field(40.0, ge=0.0, le=200.0)
@@ -114,7 +117,8 @@ class ClutterSpec(Strict):
     # lot, drawn lot by lot along each side. row: a closed row of buildings `building_setback`
     # behind the sidewalk; houses: detached houses behind front yards (hedges, fences, walls,
     # shrubs), gaps between them, a second row across the block; open: a lawn or a meadow with
-    # park trees, the next street's buildings across the block; car_park: rows of stalls with
+    # park trees, the next street's buildings across the block; green: a belt of shrubs and small
+    # trees behind a grass margin, the same buildings behind it; car_park: rows of stalls with
     # parked cars (traffic.car_park_occupancy), trees, a store behind. Empty: the first street
     # model, one closed row along the whole street. Needs the city environment with buildings on
     # (elsewhere it is ignored).

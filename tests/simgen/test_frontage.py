@@ -8,16 +8,21 @@ import json
 import numpy as np
 import pytest
 import shapely
+import trimesh
 
-from simgen.road import RoadLayout
+from simgen.road import PARKING_WIDTH, RoadLayout
 from simgen.sample import _footprint, sample_world
 from simgen.scenery import (
+    CLEAR_FOOTWAY,
     FRONT_YARD,
+    GREEN_MARGIN,
     LAND_DEPTH,
     POST_PITCH,
     POST_W,
     RAIL_DEPTH,
     RAIL_TOP,
+    SHRUB_BELT_HEIGHT,
+    SHRUB_BELT_RADIUS,
     STALL_W,
     _outer,
     build_scenery,
@@ -178,3 +183,73 @@ def test_crash_barriers_stand_along_open_land_at_their_height():
     gaps = np.diff((xs[::2] + xs[1::2]) / 2)
     # POST_PITCH apart along each lot (a new lot starts its own row of posts)
     assert np.mean(np.isclose(gaps, POST_PITCH, atol=1e-6)) > 0.9, gaps[~np.isclose(gaps, POST_PITCH)]
+
+
+def test_green_lots_hold_a_closed_belt_of_shrubs_behind_a_grass_margin():
+    """A level beam 1 m above the sidewalk, sent from its back edge straight away from the road
+    every 0.5 m along a green lot, meets the belt's foliage no nearer than the least margin and no
+    farther than the widest margin plus a shrub's reach; over the sidewalk and the margin no
+    foliage hangs lower than the footway's clearance (the small trees' crowns may reach over)."""
+    world = sample_world(_spec({"green": 1}, side_streets_per_100m=0.0, pole_spacing=0, trees_per_100m=0),
+                         2, 0)
+    road = RoadLayout(**world.scenery["road"])
+    plan = plan_frontage(world.scenery)
+    assert {lot.kind for lot in plan.lots} == {"green"}
+    foliage = trimesh.util.concatenate([p.mesh for p in world.static if p.material.name == "foliage"])
+    hits, rays = [], 0
+    for lot in plan.lots:
+        s = np.arange(max(lot.s0, road.s_min) + 3.0, min(lot.s1, road.s_max) - 3.0, 0.5)
+        outer = _outer(road, lot.side)
+        origins = np.c_[s, np.full(len(s), outer), np.full(len(s), road.curb_height + 1.0)]
+        directions = np.tile([0.0, float(lot.side), 0.0], (len(s), 1))
+        loc, idx, _ = foliage.ray.intersects_location(origins, directions, multiple_hits=True)
+        rays += len(s)
+        for k in range(len(s)):
+            d = np.abs(loc[idx == k, 1] - outer)
+            hits.append(d.min() if len(d) else np.inf)
+        v = np.asarray(foliage.vertices)
+        low = ((v[:, 0] > lot.s0) & (v[:, 0] < lot.s1) & (np.sign(v[:, 1]) == lot.side)
+               & (v[:, 2] < road.curb_height + CLEAR_FOOTWAY))
+        assert np.all(lot.side * (v[low, 1] - outer) >= GREEN_MARGIN[0] - 1e-9)
+    hits = np.array(hits)
+    assert rays > 300
+    assert np.mean(hits <= GREEN_MARGIN[1] + 2 * SHRUB_BELT_RADIUS[1]) > 0.95, np.mean(np.isfinite(hits))
+    assert hits.min() >= GREEN_MARGIN[0] - 1e-9
+    # the shrubs reach down to the lawn (at the sidewalk's height) and up to at most their height
+    z = np.asarray(foliage.vertices)[:, 2] - road.curb_height
+    assert z.min() > -1e-9 and np.sum(z < 1e-9) > 100
+    tops = np.asarray([m.vertices[:, 2].max() for m in foliage.split(only_watertight=False)])
+    assert np.sum(tops - road.curb_height <= SHRUB_BELT_HEIGHT[1] + 1e-9) > 100
+    # and the belts are rebuilt exactly from the scenery's JSON parameters (meta/)
+    static, _ = build_scenery(json.loads(json.dumps(world.scenery)))
+    for p, q in zip(world.static, static, strict=True):
+        assert np.array_equal(p.mesh.vertices, q.mesh.vertices)
+
+
+@pytest.mark.parametrize("sides", ["right", "left", "none"])
+def test_parking_sides_put_a_strip_and_parked_cars_only_where_named(sides):
+    """road.parking_sides: the strip (PARKING_WIDTH) lines only the named curbs, the other curbs
+    stand at their lane's edge, and every parked car stands in a strip."""
+    world = sample_world(spec_from_dict({
+        "name": "p", "road": {"type": "straight", "lanes_per_direction": 1, "parking_sides": sides},
+        "traffic": {"parked_per_100m": 20, "vehicles_per_100m": 0.0}}), 4, 0)
+    road = RoadLayout(**world.scenery["road"])
+    right, left = sides == "right", sides == "left"
+    assert road.right_curb == pytest.approx(road.right_lane_edge - PARKING_WIDTH * right, abs=1e-12)
+    assert road.left_curb == pytest.approx(road.left_lane_edge + PARKING_WIDTH * left, abs=1e-12)
+    parked = [a.pose[1, 3] for a in world.actors if a.cls in ("Car", "Van")]
+    if sides == "none":
+        assert not parked
+        return
+    assert len(parked) > 10
+    lo, hi = (road.right_curb, road.right_lane_edge) if right else (road.left_lane_edge, road.left_curb)
+    assert all(lo < y < hi for y in parked)
+
+
+def test_both_parking_strips_keep_the_road_dict_of_before():
+    world = sample_world(spec_from_dict({"name": "b", "traffic": {"parked_per_100m": 5}}), 1, 0)
+    assert "parking_sides" not in world.scenery["road"] and world.scenery["road"]["parking"]
+    road = RoadLayout(**world.scenery["road"])
+    assert road.right_curb == road.right_lane_edge - PARKING_WIDTH
+    assert road.left_curb == road.left_lane_edge + PARKING_WIDTH
+
