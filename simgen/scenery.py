@@ -500,9 +500,15 @@ def _tree(out: _Meshes, x: float, y: float, z: float, height: float, r: float, b
 
 
 def _shrub(out: _Meshes, x: float, y: float, z: float, r: float) -> None:
+    _ellipsoid(out, FOLIAGE, x, y, r, 0.7 * r, z + 0.7 * r)
+
+
+def _ellipsoid(out: _Meshes, mat: Material, x: float, y: float, r: float, rz: float, cz: float) -> None:
+    """A coarse ellipsoid of radius r across and rz up about (x, y, cz), its footprint an obstacle;
+    left out where it would reach into a keep-clear area."""
     fp = shapely.Point(x, y).buffer(r, 4)
     if not (out.clear and any(fp.intersects(c) for c in out.clear)):
-        out.add(FOLIAGE, _placed(_UNIT_SPHERES[0], [r, r, 0.7 * r], [x, y, z + 0.7 * r]))
+        out.add(mat, _placed(_UNIT_SPHERES[0], [r, r, rz], [x, y, cz]))
         out.obstacles.append(Obstacle(fp))
 
 
@@ -695,11 +701,7 @@ def _green(road: RoadLayout, lot: Lot, rng: np.random.Generator, out: _Meshes) -
             jitter = rng.uniform(-r_mean / 3, r_mean / 3, 2)
             across = max(q0 + r, min(q + jitter[1], q1 - r / 2))
             x, y = road.xy(s + jitter[0], outer + side * across)
-            fp = shapely.Point(x, y).buffer(r, 4)
-            if out.clear and any(fp.intersects(c) for c in out.clear):
-                continue
-            out.add(SHRUB_MASS, _placed(_UNIT_SPHERES[0], [r, r, h / 2 / _SPHERE_TOP], [x, y, ch + h / 2]))
-            out.obstacles.append(Obstacle(fp))
+            _ellipsoid(out, SHRUB_MASS, x, y, r, h / 2 / _SPHERE_TOP, ch + h / 2)
     _small_trees(road, side, s0, s1, q0 + 1.0, q1 - 1.0,
                  rng.poisson((s1 - s0) * (q1 - q0) / GREEN_M2_PER_TREE), rng, out,
                  (CLEAR_FOOTWAY, CLEAR_FOOTWAY))
