@@ -3,8 +3,8 @@ plus the breakdowns a sensitivity study needs: AP per distance bin, matched-pair
 volumetric metrics of the tolling thesis."""
 
 from .annotations import load_annotations
-from .evaluate import evaluate
+from .evaluate import ap_2d, evaluate
 from .folders import evaluate_folders
 from .report import EvalResult
 
-__all__ = ["EvalResult", "evaluate", "evaluate_folders", "load_annotations"]
+__all__ = ["EvalResult", "ap_2d", "evaluate", "evaluate_folders", "load_annotations"]

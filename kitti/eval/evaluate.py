@@ -59,8 +59,10 @@ class _Block:
 
 
 def _ap_block(p: Packed, cls: str, metrics: Sequence[str], ovs: dict, dc_ov: np.ndarray,
-              loose: bool, subset: tuple[np.ndarray, np.ndarray] | None) -> _Block:
-    """Every difficulty and metric of one class; AOS rides on the 2D matching."""
+              loose: bool, subset: tuple[np.ndarray, np.ndarray] | None,
+              overlap: float | None = None) -> _Block:
+    """Every difficulty and metric of one class; AOS rides on the 2D matching. `overlap`, when
+    given, replaces the protocol's IoU threshold (diagnosis only, see `ap_2d`)."""
     b = _Block({m: {"R11": [], "R40": []} for m in metrics}, {m: [] for m in metrics}, [], {})
     for d in range(len(DIFFICULTIES)):
         ig_gt, ig_dt = clean(cls, d, p.gt.type, p.gt.bbox, p.gt.occluded, p.gt.truncated,
@@ -72,7 +74,7 @@ def _ap_block(p: Packed, cls: str, metrics: Sequence[str], ovs: dict, dc_ov: np.
             if m == "aos":
                 continue
             with_aos = m == "2d" and "aos" in metrics
-            c = curve(p, ovs[m], ig_gt, ig_dt, min_overlap(cls, m, loose),
+            c = curve(p, ovs[m], ig_gt, ig_dt, min_overlap(cls, m, loose) if overlap is None else overlap,
                       dc_ov if m == "2d" else None, with_aos)
             pairs = [(m, c.precision)] + ([("aos", c.aos)] if with_aos else [])
             for name, vals in pairs:
@@ -163,3 +165,19 @@ def evaluate(gt: Mapping[str, Sequence[Object3D]], dt: Mapping[str, Sequence[Obj
                                "of the truth's ground distance)"}
     return EvalResult(classes, ap, ap_loose, n_gt, recall, precision, absent, bins_out, errors, vol,
                       settings)
+
+
+def ap_2d(gt: Mapping[str, Sequence[Object3D]], dt: Mapping[str, Sequence[Object3D]], cls: str,
+          overlap: float) -> list[float]:
+    """2D AP|R40 (easy, moderate, hard) of one class with the match's IoU threshold set to
+    `overlap` instead of the protocol's (0.7 for Car), every other rule as in `evaluate`. A
+    diagnosis, not the benchmark: at 0.5 a Car counts as found wherever a detection overlaps it
+    by half, so AP@0.5 against AP@0.7 tells the cars a detector misses from the boxes it places
+    loosely (COCO's AP50 reads the same way)."""
+    min_overlap(cls, "2d")  # unknown class -> clear error
+    if not 0.0 < overlap < 1.0:
+        raise ValueError(f"overlap must lie in (0, 1), got {overlap}")
+    p = pack(gt, dt)
+    b = _ap_block(p, cls, ["2d"], {"2d": pair_overlaps(p, "2d")}, dontcare_overlap(p.dt, p.dc),
+                  False, None, overlap)
+    return b.ap["2d"]["R40"]

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from kitti.eval import evaluate
+from kitti.eval import ap_2d, evaluate
 from kitti.eval.matching import thresholds
 from kitti.eval.protocol import clean
 from kitti.labels import Object3D
@@ -192,6 +192,25 @@ def test_matching_needs_overlap_strictly_above_the_threshold():
     o.bbox[3] = o.bbox[1] + 0.7 * (o.bbox[3] - o.bbox[1])  # 35 of 50 px: IoU 0.7
     res = evaluate(gt, dt, classes=["Car"])
     assert r(res) < 100.0
+
+
+def test_ap_2d_at_another_overlap_counts_loose_boxes_and_equals_the_protocol_at_its_own():
+    # 40 exact Car detections and one as tall as its truth but 30 of its 50 px wide: IoU 0.6, a
+    # match at 0.5, not at 0.7. R40 at 0.7: 40 of 41 found, precision 1 up to recall 40/41, so 39
+    # of the 40 recall slots (1/40 ... 39/40 <= 40/41) hold 1.0 and the last 0: 97.5. At 0.5 all 40.
+    gt = cars(41)
+    dt = perfect(gt)
+    o = dt["000004"][0]
+    o.bbox[2] = o.bbox[0] + 0.6 * (o.bbox[2] - o.bbox[0])
+    assert ap_2d(gt, dt, "Car", 0.7) == pytest.approx([97.5] * 3)
+    official = evaluate(gt, dt, classes=["Car"]).ap["Car"]["2d"]["R40"]
+    assert ap_2d(gt, dt, "Car", 0.7) == pytest.approx(official)
+    assert ap_2d(gt, dt, "Car", 0.5) == pytest.approx([100.0] * 3)
+    assert ap_2d(gt, dt, "Car", 0.61) == pytest.approx([97.5] * 3)  # strictly above: 0.6 < 0.61
+    with pytest.raises(ValueError, match="overlap"):
+        ap_2d(gt, dt, "Car", 1.0)
+    with pytest.raises(ValueError, match="no IoU threshold"):
+        ap_2d(gt, dt, "Bus", 0.5)
 
 
 def test_second_pass_prefers_overlap_first_pass_prefers_score():
