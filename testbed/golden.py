@@ -2,6 +2,7 @@
 
 The test suite runs it and compares with `scenes/golden/expected.json` within TOLERANCE, so a
 change anywhere (meshes, renderer, LiDAR, detector, lifter, evaluation) that moves a number is caught.
+`.venv/bin/python -m testbed.golden` makes the same comparison and exits 1 listing what moved.
 When a change is meant to move them, regenerate the expectation and commit it with the change:
 
     .venv/bin/python -m testbed.golden --update
@@ -11,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import tempfile
 from pathlib import Path
 
@@ -52,6 +54,35 @@ def key_numbers(results) -> dict:
     return out
 
 
+def differences(got: dict, expected: dict) -> list[str]:
+    """Every key number of `got` that moved from `expected` beyond TOLERANCE (AP keys, those with
+    "r40", in points; errors in metres and degrees; the matched count exactly), as readable lines;
+    empty when the two agree."""
+    out: list[str] = []
+
+    def walk(g, w, tol: float, where: str) -> None:
+        if isinstance(w, dict) and isinstance(g, dict) and set(g) == set(w):
+            for k in w:
+                walk(g[k], w[k], tol, f"{where}.{k}")
+        elif isinstance(w, list) and isinstance(g, list) and len(g) == len(w):
+            for i, (a, b) in enumerate(zip(g, w)):
+                walk(a, b, tol, f"{where}[{i}]")
+        elif w is None or g is None or isinstance(w, (dict, list)):
+            if g != w:
+                out.append(f"{where}: {g} != {w}")
+        elif abs(g - w) > tol:
+            out.append(f"{where}: {g} != {w} (tolerance {tol})")
+
+    for point in sorted(set(got) | set(expected)):
+        if point not in got or point not in expected:
+            out.append(f"{point}: {'not computed' if point not in got else 'not in the expectation'}")
+            continue
+        for key in sorted(set(got[point]) | set(expected[point])):
+            tol = 0.0 if key == "matched" else TOLERANCE["ap"] if "r40" in key else TOLERANCE["error"]
+            walk(got[point].get(key), expected[point].get(key), tol, f"{point}.{key}")
+    return out
+
+
 def compute(root: Path | None = None, workers: int = 1) -> dict:
     """The key numbers of the golden sweep, run under `root` (default: a temporary folder)."""
     with tempfile.TemporaryDirectory() as tmp:
@@ -70,8 +101,13 @@ def main() -> None:
     if args.update:
         EXPECTED.write_text(text)
         print(f"wrote {EXPECTED}")
-    else:
-        print(text)
+        return
+    moved = differences(numbers, json.loads(EXPECTED.read_text()))
+    if moved:
+        sys.exit(f"{len(moved)} golden numbers moved from {EXPECTED}:\n" + "\n".join(moved)
+                 + "\nIf the change is meant to move them: .venv/bin/python -m testbed.golden --update")
+    print(f"the golden numbers match {EXPECTED} (AP within {TOLERANCE['ap']} points, errors within "
+          f"{TOLERANCE['error']})")
 
 
 if __name__ == "__main__":

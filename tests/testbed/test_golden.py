@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from testbed.backends import LocalBackend, RayBackend
-from testbed.golden import EXPECTED, TOLERANCE, compute
+from testbed.golden import EXPECTED, compute, differences
 from testbed.sweep import execute, load_sweep, plan
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -34,29 +34,24 @@ def test_golden_bounds(golden):
     assert mono["3d_r40_moderate_by_range"]["0"] <= fit64["3d_r40_moderate_by_range"]["0"]
 
 
-def _close(got, want, tol: float, where: str) -> None:
-    if isinstance(want, dict):
-        assert set(got) == set(want), where
-        for k in want:
-            _close(got[k], want[k], tol if k != "matched" else 0, f"{where}.{k}")
-    elif isinstance(want, list):
-        assert len(got) == len(want), where
-        for i, (g, w) in enumerate(zip(got, want)):
-            _close(g, w, tol, f"{where}[{i}]")
-    elif want is None or got is None:
-        assert got is want, where
-    else:
-        assert abs(got - want) <= tol, f"{where}: {got} != {want} (tolerance {tol})"
-
-
 def test_golden_numbers_match_the_committed_expectation(golden):
     """If this fails after an intended change: `.venv/bin/python -m testbed.golden --update`."""
-    expected = json.loads(EXPECTED.read_text())
-    assert set(golden) == set(expected)
-    for point, want in expected.items():
-        for key, value in want.items():
-            tol = TOLERANCE["ap"] if "r40" in key else TOLERANCE["error"]
-            _close(golden[point][key], value, tol, f"{point}.{key}")
+    assert differences(golden, json.loads(EXPECTED.read_text())) == []
+
+
+def test_differences_name_what_moved_beyond_its_tolerance():
+    want = {"p": {"3d_r40": [80.0, 70.0, 60.0], "3d_r40_moderate_by_range": {"0": 75.0, "20": None},
+                  "matched": 12, "centre_median": 0.20}}
+    got = {"p": {"3d_r40": [80.5, 69.4, 60.0], "3d_r40_moderate_by_range": {"0": 75.0, "20": 3.0},
+                 "matched": 11, "centre_median": 0.209}}
+    assert differences(want, want) == []
+    # AP within 0.5 points passes, 0.6 does not; None against a number moves; the count exactly;
+    # errors within 0.01
+    assert differences(got, want) == ["p.3d_r40[1]: 69.4 != 70.0 (tolerance 0.5)",
+                                      "p.3d_r40_moderate_by_range.20: 3.0 != None",
+                                      "p.matched: 11 != 12 (tolerance 0.0)"]
+    assert differences({}, want) == ["p: not computed"]
+    assert differences({**want, "q": {}}, want) == ["q: not in the expectation"]
 
 
 def _files(root: Path) -> dict[str, bytes]:
