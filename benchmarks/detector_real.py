@@ -28,7 +28,7 @@ import numpy as np
 from detector.augment import pairwise_iou
 from detector.infer import detect_dataset
 from kitti.dataset import KittiDataset
-from kitti.eval import ap_2d, evaluate_folders
+from kitti.eval import ap_2d, evaluate
 from kitti.eval.bootstrap import DRAWS, bootstrap_ap
 from kitti.eval.folders import load_folders
 
@@ -175,11 +175,9 @@ def main() -> None:
         pred_dir = args.out / f"pred_{i}"
         pred = detect_dataset(args.data, pred_dir, w, split=args.split, progress=False, mirror=mirror)
         w = f"{w} ({'mirrored' if mirror else 'one pass'})"
-        strict = evaluate_folders(Path(args.data) / "training" / "label_2", pred_dir, split,
-                                  classes=["Car"], progress=False)
-        ap7 = strict.ap["Car"]["2d"]["R40"]
-        ap5 = ap_2d(*load_folders(Path(args.data) / "training" / "label_2", pred_dir, split, progress=False),
-                    "Car", 0.5)
+        gt, dt = load_folders(Path(args.data) / "training" / "label_2", pred_dir, split, progress=False)
+        ap7 = evaluate(gt, dt, classes=["Car"]).ap["Car"]["2d"]["R40"]
+        ap5 = ap_2d(gt, dt, "Car", 0.5)
         unmatched = unmatched_scores(ds, ids, pred)
         fp = false_positives(unmatched)
         print(f"| {w} | {' / '.join(f'{a:.1f}' for a in ap7)} | {' / '.join(f'{a:.1f}' for a in ap5)} | "
