@@ -16,7 +16,11 @@ fewer country roads), so the shares are a reference for the kind of streets, not
 
 Returns on an actor are counted by its class (`simgen.world.Actor.cls`); every other return by
 the material of the surface its ray meets (`far_returns.materials_hit`, which names a return
-behind a facade's glass "window").
+behind a facade's glass "window"). Kerbs and the low walls of plot boundaries share one concrete
+material: a return on it standing more than WALL_ABOVE over the kerb's top (the road's surface
+under it plus the curb height) is a wall's and counts as fence, the rest as sidewalk (kerbs).
+SemanticKITTI's fence class takes fences, guard rails and such low walls (its other-structure,
+folded into "other" here, the rest).
 
 `--front-boundaries` draws the front-yard boundaries of detached houses from the given list,
 each entry equally often, in place of `simgen.scenery.BOUNDARIES` (hedge, fence, wall, none;
@@ -35,6 +39,7 @@ from tqdm import tqdm
 
 import simgen.scenery
 from simgen import lidar
+from simgen.road import RoadLayout
 from simgen.sample import sample_world
 from simgen.spec import load_spec
 
@@ -65,7 +70,7 @@ BY_ACTOR = {"Car": "car", "Van": "car", "Truck": "truck", "Bus": "other-vehicle"
             "Cyclist": "bicycle, cyclist"}
 BY_MATERIAL = {
     "asphalt": "road", "marking": "road",
-    "sidewalk": "sidewalk", "curb": "sidewalk",  # kerbs, and the low concrete walls of front yards
+    "sidewalk": "sidewalk", "curb": "sidewalk",  # kerbs (low concrete walls: fence, classes_of)
     "facade": "building", "window": "building",
     "fence": "fence",
     "foliage": "vegetation",
@@ -78,11 +83,22 @@ BY_MATERIAL = {
 }
 
 
+WALL_ABOVE = 0.05  # m over the kerb's top: kerb faces end there, walls stand 0.5-1.2 m above it
+
+
 def classes_of(world, scan: lidar.LidarScan, sensor: lidar.LidarSpec, target) -> np.ndarray:
     """SemanticKITTI class name per return (`target`: the scan's own Embree scene)."""
     cls = {a.id: BY_ACTOR.get(a.cls, OTHER) for a in world.actors}
     names = materials_hit(world, sensor, scan, target)
     out = np.array([BY_MATERIAL.get(n, OTHER) for n in names.tolist()], dtype=object)
+    concrete = np.flatnonzero(names == "curb")
+    if len(concrete):  # the return in the world frame, against the kerb's top under it
+        road = RoadLayout(**world.scenery["road"])
+        poses = world.lidar_pose_at(scan.time[concrete].astype(np.float64))
+        p = poses[:, :3, 3] + np.einsum("nij,nj->ni", poses[:, :3, :3],
+                                        scan.points[concrete, :3].astype(np.float64))
+        wall = p[:, 2] > road.height(p[:, 0], p[:, 1]) + road.curb_height + WALL_ABOVE
+        out[concrete[wall]] = "fence"
     on_actor = scan.actor_id > 0
     out[on_actor] = [cls[int(i)] for i in scan.actor_id[on_actor]]
     return out

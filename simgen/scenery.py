@@ -744,6 +744,29 @@ def _lot(road: RoadLayout, lot: Lot, setback: float, rng: np.random.Generator, o
                                           rng.uniform(*STORE_HEIGHT)))
 
 
+# Front boundaries of the other lots (clutter.front_boundary): a street's land is fenced, hedged or
+# walled off from the sidewalk as the detached houses' yards are, along closed rows set back
+# behind front gardens, open land and belts of green; the same kinds and sizes as the yards'
+# (FENCE_HEIGHT, HEDGE_HEIGHT, WALL_HEIGHT), equally often. A row needs a front garden
+# (ROW_GARDEN) for one; car parks keep their own hedge or nothing. SemanticKITTI's fence class
+# (fences, small walls, crash barriers) takes 7.2 % of its returns, a generated scan's 0.8 %.
+FRONTED = ("row", "open", "green")
+ROW_GARDEN = 1.5
+
+
+def _front_boundaries(road: RoadLayout, plan: Frontage, setback: float, share: float,
+                      rng: np.random.Generator, out: _Meshes) -> None:
+    """With probability `share` per lot of a FRONTED kind, a hedge, fence or wall along the back
+    of its sidewalk (pieces in keep-clear areas are left out, as every boundary's)."""
+    kinds = ("hedge", "fence", "wall")
+    for lot in plan.lots:
+        if lot.kind not in FRONTED or (lot.kind == "row" and setback < ROW_GARDEN):
+            continue
+        if rng.uniform() < share:
+            s0, s1 = max(lot.s0, road.s_min), min(lot.s1, road.s_max)
+            _boundary(road, lot.side, s0, s1, kinds[int(rng.integers(len(kinds)))], rng, out)
+
+
 def _side_street(road: RoadLayout, side: int, a: float, b: float, out: _Meshes) -> None:
     """A side street's carriageway [a, b] from the road's edge out to the land's far edge, its
     sidewalks and curbs; the band is kept clear of trees, poles and buildings."""
@@ -815,8 +838,12 @@ def _build_frontage(road: RoadLayout, plan: Frontage, clutter: dict, ground: Mat
     _frontage_ground(road, plan, ground, out)
     _markings(road, out)
     rng = np.random.default_rng([seed, 2])
+    setback = float(clutter["building_setback"])
     for lot in plan.lots:
-        _lot(road, lot, float(clutter["building_setback"]), rng, out, float(clutter.get("guardrail", 0.0)))
+        _lot(road, lot, setback, rng, out, float(clutter.get("guardrail", 0.0)))
+    share = float(clutter.get("front_boundary", 0.0))
+    if share > 0:  # its own stream: every other draw of the world stays as it was
+        _front_boundaries(road, plan, setback, share, np.random.default_rng([seed, 6]), out)
     rng = np.random.default_rng([seed, 3])
     for side in (-1, 1):
         _street_trees(road, side, clutter["trees_per_100m"], rng, out)

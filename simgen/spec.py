@@ -126,6 +126,9 @@ class ClutterSpec(Strict):
     side_streets_per_100m: factor(float, 0.0, 5.0) = 0.0  # T-junctions per side; with frontage
     # Share of open lots with a steel crash barrier along the sidewalk (simgen.scenery._guardrail).
     guardrail: factor(float, 0.0, 1.0) = 0.0
+    # Share of closed rows behind front gardens, open lots and belts of green with a hedge, fence or
+    # wall along the sidewalk (simgen.scenery._front_boundaries); detached houses always had theirs.
+    front_boundary: factor(float, 0.0, 1.0) = 0.0
     # Street furniture on the sidewalks (simgen.scenery, "Street furniture"): a factor on the
     # documented densities of traffic signs, litter bins, bollards and cycle stands; traffic
     # signals at the intersection whenever > 0. 0: none (as before).

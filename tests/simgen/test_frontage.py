@@ -253,3 +253,45 @@ def test_both_parking_strips_keep_the_road_dict_of_before():
     assert road.right_curb == road.right_lane_edge - PARKING_WIDTH
     assert road.left_curb == road.left_lane_edge + PARKING_WIDTH
 
+
+
+def test_front_boundaries_line_the_sidewalk_of_every_fronted_lot_and_change_nothing_else():
+    """clutter.front_boundary 1: a level ray 0.4 m above the sidewalk (lower than the lowest
+    wall), sent away from the road from just inside the sidewalk's back edge, meets a hedge,
+    fence or wall exactly 0.2 m behind that edge all along every row, open and green lot; the
+    world is the one without them plus those boundaries (their own random stream), and it is
+    rebuilt exactly from its JSON parameters. A row standing less than ROW_GARDEN behind the
+    sidewalk gets none."""
+    kw = dict(side_streets_per_100m=0.0, pole_spacing=0, trees_per_100m=0, furniture=0.0)
+    lots = {"row": 1, "open": 1, "green": 1}
+    bare = sample_world(_spec(lots, building_setback=3.0, **kw), 5, 0)
+    fenced = sample_world(_spec(lots, building_setback=3.0, front_boundary=1.0, **kw), 5, 0)
+    road = RoadLayout(**fenced.scenery["road"])
+    plan = plan_frontage(fenced.scenery)
+    assert {lot.kind for lot in plan.lots} == set(lots)
+    def by_material(world):  # the scenery merges each material's meshes into one part
+        return {p.material.name: np.asarray(p.mesh.vertices) for p in world.static}
+
+    was, now = by_material(bare), by_material(fenced)
+    assert set(was) <= set(now) <= set(was) | {"fence"}
+    for name, v in was.items():
+        if name not in ("foliage", "fence", "curb"):
+            assert np.array_equal(v, now[name]), name
+        else:  # every vertex of before is still there, and more stand beside them
+            rows = {r.tobytes() for r in now[name]}
+            assert all(r.tobytes() in rows for r in v), name
+    assert sum(len(now[k]) for k in now) > sum(len(was[k]) for k in was)
+    scene = trimesh.util.concatenate([p.mesh for p in fenced.static])
+    for lot in plan.lots:
+        s = np.arange(max(lot.s0, road.s_min) + 1.0, min(lot.s1, road.s_max) - 1.0, 0.5)
+        outer = _outer(road, lot.side)
+        origins = np.c_[s, np.full(len(s), outer - lot.side * 0.05), np.full(len(s), road.curb_height + 0.4)]
+        loc, idx, _ = scene.ray.intersects_location(origins, np.tile([0.0, float(lot.side), 0.0], (len(s), 1)),
+                                                    multiple_hits=False)
+        assert len(s) > 10 and sorted(idx) == list(range(len(s)))
+        np.testing.assert_allclose(np.abs(loc[:, 1] - outer), 0.2, atol=1e-6)
+    static, _ = build_scenery(json.loads(json.dumps(fenced.scenery)))
+    assert [p.mesh.vertices.tobytes() for p in static] == [p.mesh.vertices.tobytes() for p in fenced.static]
+    near = sample_world(_spec({"row": 1}, building_setback=1.0, front_boundary=1.0, **kw), 5, 0)
+    far = sample_world(_spec({"row": 1}, building_setback=1.0, **kw), 5, 0)
+    assert len(near.static) == len(far.static)
