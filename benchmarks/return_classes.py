@@ -19,8 +19,8 @@ the material of the surface its ray meets (`far_returns.materials_hit`, which na
 behind a facade's glass "window"). Kerbs and the low walls of plot boundaries share one concrete
 material: a return on it standing more than WALL_ABOVE over the kerb's top (the road's surface
 under it plus the curb height) is a wall's and counts as fence, the rest as sidewalk (kerbs).
-SemanticKITTI's fence class takes fences, guard rails and such low walls (its other-structure,
-folded into "other" here, the rest).
+(SemanticKITTI's class definitions were not at hand to say whether its annotators put such walls
+in fence or in other-structure, which is folded into "other" here.)
 
 `--front-boundaries` draws the front-yard boundaries of detached houses from the given list,
 each entry equally often, in place of `simgen.scenery.BOUNDARIES` (hedge, fence, wall, none;
