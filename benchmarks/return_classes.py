@@ -120,21 +120,28 @@ def main() -> None:
         simgen.scenery.BOUNDARIES = kinds
     spec = load_spec(args.spec)
     sensor = lidar.preset(spec.lidar.preset, beams=spec.lidar.beams, max_range=spec.lidar.max_range)
-    counts, n = collections.Counter(), 0
+    counts, reading, n = collections.Counter(), collections.Counter(), 0
     for i in tqdm(range(args.frames), desc="frames"):
         world = sample_world(spec, args.seed, i)
         target = lidar.build_target(world, sensor)
         swept = lidar.scan(world, sensor, 0, target)
-        counts.update(classes_of(world, swept, sensor, target).tolist())
+        classes = classes_of(world, swept, sensor, target)
+        counts.update(classes.tolist())
+        for name in counts:  # the reflectance each class's returns read, summed
+            reading[name] += float(swept.points[classes == name, 3].sum())
         n += len(swept.points)
     print(f"{args.spec}, {args.frames} frames (seed {args.seed}), {n / args.frames:,.0f} returns a frame"
           + (f", front boundaries drawn from {args.front_boundaries}" if args.front_boundaries else ""))
-    print("| class | generated (%) | SemanticKITTI, sequences 00-10 (%) | ratio |\n|---|---:|---:|---:|")
+    print("| class | generated (%) | SemanticKITTI, sequences 00-10 (%) | ratio | generated: mean reflectance |"
+          "\n|---|---:|---:|---:|---:|")
+    mean = (lambda name: reading[name] / counts[name] if counts[name] else float("nan"))
     for name, ref in sorted(SEMANTIC_KITTI.items(), key=lambda kv: -kv[1]):
         share = counts[name] / n
-        print(f"| {name} | {100 * share:.2f} | {100 * ref:.2f} | {share / ref:.2f} |")
+        print(f"| {name} | {100 * share:.2f} | {100 * ref:.2f} | {share / ref:.2f} | {mean(name):.3f} |")
     rest = 1.0 - sum(SEMANTIC_KITTI.values())
-    print(f"| {OTHER} | {100 * counts[OTHER] / n:.2f} | {100 * rest:.2f} | {counts[OTHER] / n / rest:.2f} |")
+    print(f"| {OTHER} | {100 * counts[OTHER] / n:.2f} | {100 * rest:.2f} | {counts[OTHER] / n / rest:.2f} "
+          f"| {mean(OTHER):.3f} |")
+    print(f"every return: mean reflectance {sum(reading.values()) / n:.3f}")
     grouped = {"ground (road, sidewalk, other ground, terrain)":
                ("road", "sidewalk", "other-ground", "terrain"),
                "vegetation and trunks": ("vegetation", "trunk"),
