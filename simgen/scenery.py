@@ -752,6 +752,7 @@ def _lot(road: RoadLayout, lot: Lot, setback: float, rng: np.random.Generator, o
 # takes 7.2 % of its returns; fences, crash barriers and low walls took 1.5 % of a scan of
 # scenes/urban.yaml before these boundaries (benchmarks/return_classes.py).
 FRONTED = ("row", "open", "green")
+FRONT_KINDS = tuple(k for k in BOUNDARIES if k != "none")  # the yards' kinds, each always drawn
 ROW_GARDEN = 1.5
 
 
@@ -759,13 +760,12 @@ def _front_boundaries(road: RoadLayout, plan: Frontage, setback: float, share: f
                       rng: np.random.Generator, out: _Meshes) -> None:
     """With probability `share` per lot of a FRONTED kind, a hedge, fence or wall along the back
     of its sidewalk (pieces in keep-clear areas are left out, as every boundary's)."""
-    kinds = ("hedge", "fence", "wall")
     for lot in plan.lots:
         if lot.kind not in FRONTED or (lot.kind == "row" and setback < ROW_GARDEN):
             continue
         if rng.uniform() < share:
             s0, s1 = max(lot.s0, road.s_min), min(lot.s1, road.s_max)
-            _boundary(road, lot.side, s0, s1, kinds[int(rng.integers(len(kinds)))], rng, out)
+            _boundary(road, lot.side, s0, s1, FRONT_KINDS[int(rng.integers(len(FRONT_KINDS)))], rng, out)
 
 
 def _side_street(road: RoadLayout, side: int, a: float, b: float, out: _Meshes) -> None:

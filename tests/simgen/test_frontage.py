@@ -294,5 +294,6 @@ def test_front_boundaries_line_the_sidewalk_of_every_fronted_lot_and_change_noth
     assert [p.mesh.vertices.tobytes() for p in static] == [p.mesh.vertices.tobytes() for p in fenced.static]
     row_asked = sample_world(_spec({"row": 1}, building_setback=1.0, front_boundary=1.0, **kw), 5, 0)
     row_bare = sample_world(_spec({"row": 1}, building_setback=1.0, **kw), 5, 0)
-    assert by_material(row_asked).keys() == by_material(row_bare).keys()
-    assert all(np.array_equal(v, by_material(row_bare)[k]) for k, v in by_material(row_asked).items())
+    asked, bare_row = by_material(row_asked), by_material(row_bare)
+    assert asked.keys() == bare_row.keys()
+    assert all(np.array_equal(v, bare_row[k]) for k, v in asked.items())
