@@ -20,6 +20,7 @@ cosine-weighted sky that the actors' meshes hide, with a fixed set of rays per p
 from __future__ import annotations
 
 import ctypes
+import warnings
 from dataclasses import dataclass
 from functools import cache
 
@@ -49,18 +50,26 @@ SKY_REACH = 2.0
 AXIS_MARGIN = 0.05
 
 
+# Embree picks its kernels by the CPU it runs on (SSE2 up to AVX-512), and kernels of different
+# widths round differently: the same triangles and rays give hits a few ulps apart, enough to move
+# a return across an edge or a threshold (3 urban scans hashed with devices capped at AVX2, AVX and
+# SSE4.2: three different outputs; the golden numbers committed from another machine moved by up to
+# 3.5 AP on an AVX2-only one). Capped at AVX2 (x86-64 CPUs since 2013; one without it runs its own
+# best), every such machine runs the same kernels and writes the same bytes.
+EMBREE_CONFIG = b"max_isa=avx2"
 # Embree 4's enums (rtcore_common.h, rtcore_buffer.h) for one triangle geometry.
 _TRIANGLE, _INDEX, _VERTEX, _UINT3, _FLOAT3 = 0, 0, 1, 0x5003, 0x9003
 _HEAD = object.__basicsize__  # bytes of a CPython object header; a Cython class's fields follow
 
 
-def embree_scene(vertices: np.ndarray, faces: np.ndarray) -> EmbreeScene:
+def embree_scene(vertices: np.ndarray, faces: np.ndarray, config: bytes = EMBREE_CONFIG) -> EmbreeScene:
     """A new Embree scene of one triangle geometry: `vertices` (V, 3) and `faces` (F, 3) indexing
-    them, held as float32 and uint32 as embreex's TriangleMesh holds them. embreex copies into
+    them, held as float32 and uint32 as embreex's TriangleMesh holds them, on a device made with
+    Embree's `config` string (`_device`). embreex copies into
     Embree one Python-level read per number (100 ms for a street's 70k vertices and 130k
     triangles); where its objects have the layout `_handles` reads, the buffers are filled with
     one memmove each through the same library calls instead, and Embree gets the same numbers."""
-    device = EmbreeDevice()
+    device = _device(config)
     scene = EmbreeScene(device)
     lib, handles = _embree_lib(), _handles(scene, device)
     if lib is None or handles is None:
@@ -85,7 +94,9 @@ def _embree_lib() -> ctypes.CDLL | None:
     library embreex uses); None for an embreex built on another Embree."""
     lib = ctypes.CDLL(rtcore_scene.__file__)
     try:
-        calls = {"rtcNewGeometry": ([ctypes.c_void_p, ctypes.c_int], ctypes.c_void_p),
+        calls = {"rtcNewDevice": ([ctypes.c_char_p], ctypes.c_void_p),
+                 "rtcReleaseDevice": ([ctypes.c_void_p], None),
+                 "rtcNewGeometry": ([ctypes.c_void_p, ctypes.c_int], ctypes.c_void_p),
                  "rtcSetNewGeometryBuffer": ([ctypes.c_void_p, ctypes.c_int, ctypes.c_uint, ctypes.c_int,
                                               ctypes.c_size_t, ctypes.c_size_t], ctypes.c_void_p),
                  "rtcCommitGeometry": ([ctypes.c_void_p], None),
@@ -96,6 +107,25 @@ def _embree_lib() -> ctypes.CDLL | None:
     except AttributeError:
         return None
     return lib
+
+
+def _device(config: bytes) -> EmbreeDevice:
+    """An embreex device whose RTCDevice is made with `config`: embreex makes its own with Embree's
+    defaults and takes no config, so that one is released and the configured one put in its C
+    field (rtcore.pxd: device), which the object releases when it goes, as it did its own."""
+    device = EmbreeDevice()
+    lib = _embree_lib()
+    if lib is None or EmbreeDevice.__basicsize__ != _HEAD + 8:
+        warnings.warn("embreex's device has an unknown layout: Embree runs its kernels for this CPU, "
+                      "and scans may differ in the last bits between machines", stacklevel=3)
+        return device
+    configured = lib.rtcNewDevice(config)
+    if not configured:
+        raise ValueError(f"Embree refused the device config {config!r}")
+    field = ctypes.c_void_p.from_address(id(device) + _HEAD)
+    lib.rtcReleaseDevice(field.value)
+    field.value = configured
+    return device
 
 
 def _handles(scene: EmbreeScene, device: EmbreeDevice) -> tuple[int, int] | None:
