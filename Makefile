@@ -1,6 +1,7 @@
 # Two commands work on a fresh machine: `make demo` and `make test`.
 # Both create .venv when it is missing and (re)install the project only when
-# pyproject.toml changed since the last install, so a second run starts at once.
+# pyproject.toml or constraints.txt (the exact releases, below) changed since the last install,
+# so a second run starts at once.
 
 PYTHON ?= python3
 VENV := .venv
@@ -16,14 +17,14 @@ $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
 
 # torch==2.13.0 must come from the local CPU wheel (PIP_FIND_LINKS), never the CUDA build.
-$(STAMP): pyproject.toml | $(BIN)/python
-	$(BIN)/pip install --quiet --find-links /opt/wheels torch==2.13.0
-	$(BIN)/pip install --quiet --find-links /opt/wheels -e .
+$(STAMP): pyproject.toml constraints.txt | $(BIN)/python
+	$(BIN)/pip install --quiet --find-links /opt/wheels -c constraints.txt torch==2.13.0
+	$(BIN)/pip install --quiet --find-links /opt/wheels -c constraints.txt -e .
 	touch $(STAMP)
 
 # The tests also need the test tools and Ray (CI runs a sweep on the Ray backend).
 $(TEST_STAMP): $(STAMP)
-	$(BIN)/pip install --quiet --find-links /opt/wheels -e ".[test,ray]"
+	$(BIN)/pip install --quiet --find-links /opt/wheels -c constraints.txt -e ".[test,ray]"
 	touch $(TEST_STAMP)
 
 install: $(TEST_STAMP)
