@@ -72,3 +72,19 @@ def test_bad_inputs_are_named():
         FlexiNet(ModelConfig(activation="relu6"))
     with pytest.raises(ValueError, match="preset"):
         ModelConfig.from_preset("huge")
+
+
+@pytest.mark.parametrize("package", ["detector", "lifter"])
+def test_importing_a_torch_package_caps_torch_at_avx2(package):
+    """Kernels of different widths round differently: on any CPU from AVX2 up, torch must run AVX2's
+    (on an AVX-512 machine it would otherwise pick AVX512's). A fresh interpreter, nothing set."""
+    import os
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items() if k not in ("ATEN_CPU_CAPABILITY", "ONEDNN_MAX_CPU_ISA")}
+    code = (f"import torch, {package}, os; torch.ones(2) + 1; "
+            "print(torch.backends.cpu.get_cpu_capability(), os.environ['ONEDNN_MAX_CPU_ISA'])")
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+    has_avx2 = "avx2" in open("/proc/cpuinfo").read()
+    assert out.stdout.split() == ["AVX2" if has_avx2 else "DEFAULT", "AVX2"]
