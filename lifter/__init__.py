@@ -2,10 +2,7 @@
 
 import os
 
-# PyTorch picks its CPU kernels by the CPU (ATen's DEFAULT / AVX2 / AVX512, oneDNN's up to AVX-512),
-# and kernels of different widths round differently: eight frames' detections hashed with ATen on
-# DEFAULT or oneDNN capped at SSE4.1 differ from AVX2's. Both are read at the first tensor operation,
-# so capping them here, before any, gives the same outputs on every x86-64 CPU from AVX2 up (the
-# LiDAR's Embree kernels are capped alike: simgen.shadows.EMBREE_CONFIG). A user's own setting wins.
+# PyTorch's CPU kernels capped at AVX2 before any tensor operation, as detector/__init__.py does
+# (why: there); the two packages import neither each other nor a shared module of their own.
 os.environ.setdefault("ATEN_CPU_CAPABILITY", "avx2")
 os.environ.setdefault("ONEDNN_MAX_CPU_ISA", "AVX2")

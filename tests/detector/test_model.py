@@ -1,4 +1,8 @@
-"""FlexiNet shapes for every preset and activation, scaling rules, BN folding."""
+"""FlexiNet shapes for every preset and activation, scaling rules, BN folding; torch's kernels."""
+import os
+import subprocess
+import sys
+
 import pytest
 import torch
 
@@ -78,10 +82,6 @@ def test_bad_inputs_are_named():
 def test_importing_a_torch_package_caps_torch_at_avx2(package):
     """Kernels of different widths round differently: on any CPU from AVX2 up, torch must run AVX2's
     (on an AVX-512 machine it would otherwise pick AVX512's). A fresh interpreter, nothing set."""
-    import os
-    import subprocess
-    import sys
-
     env = {k: v for k, v in os.environ.items() if k not in ("ATEN_CPU_CAPABILITY", "ONEDNN_MAX_CPU_ISA")}
     code = (f"import torch, {package}, os; torch.ones(2) + 1; "
             "print(torch.backends.cpu.get_cpu_capability(), os.environ['ONEDNN_MAX_CPU_ISA'])")
