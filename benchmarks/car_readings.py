@@ -28,6 +28,7 @@ from kitti.velodyne import read_velodyne
 NEIGHBOURS = 12
 MIN_POINTS = 30
 COS_BINS = (0.0, 0.3, 0.5, 0.7, 0.85, 0.95, 1.0001)
+PERCENTILES = (10, 25, 50, 75, 90)
 
 
 def incidence(points: np.ndarray) -> np.ndarray:
@@ -40,10 +41,11 @@ def incidence(points: np.ndarray) -> np.ndarray:
     return np.abs(np.einsum("ij,ij->i", normal, beam))
 
 
-def car_returns(root: Path, near: float, frames: int) -> tuple[np.ndarray, np.ndarray]:
-    """Reflectance and incidence of every return on a Car nearer than `near` m."""
+def car_returns(root: Path, near: float, frames: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Reflectance and incidence of every return on a Car nearer than `near` m, and per Car its
+    share of returns that read 0 and its nonzero median (NaN when none is nonzero): (C, 2)."""
     t = root / "training"
-    refl, cos = [], []
+    refl, cos, per_car = [], [], []
     for label in tqdm(sorted((t / "label_2").glob("*.txt"))[:frames], desc=root.name, leave=False):
         cars = [o for o in read_label(label) if o.type == "Car"
                 and np.hypot(o.location[0], o.location[2]) < near]
@@ -53,9 +55,11 @@ def car_returns(root: Path, near: float, frames: int) -> tuple[np.ndarray, np.nd
         rect = read_calib(t / "calib" / f"{label.stem}.txt").lidar_to_rect(scan[:, :3].astype(np.float64))
         for inside in points_in_boxes(rect, np.stack([o.box7 for o in cars])):
             if inside.sum() >= MIN_POINTS:
-                refl.append(scan[inside, 3])
+                r = scan[inside, 3]
+                refl.append(r)
                 cos.append(incidence(scan[inside, :3].astype(np.float64)))
-    return np.concatenate(refl), np.concatenate(cos)
+                per_car.append((np.mean(r == 0), np.median(r[r > 0]) if (r > 0).any() else np.nan))
+    return np.concatenate(refl), np.concatenate(cos), np.array(per_car)
 
 
 def main() -> None:
@@ -68,16 +72,22 @@ def main() -> None:
     sides = {name: car_returns(root, args.near, args.frames)
              for name, root in (("sim", args.sim), ("real", args.real))}
     print(f"Returns on Cars nearer than {args.near:.0f} m: " + ", ".join(
-        f"{name} {len(r):,}, {np.mean(r == 0):.2f} read 0" for name, (r, _) in sides.items()))
+        f"{name} {len(r):,}, {np.mean(r == 0):.2f} read 0" for name, (r, _, _) in sides.items()))
     print("| incidence cos | sim: returns, share read 0, nonzero median | real: the same |")
     print("|---|---|---|")
     for lo, hi in zip(COS_BINS[:-1], COS_BINS[1:]):
         cells = []
-        for r, c in sides.values():
+        for r, c, _ in sides.values():
             v = r[(c >= lo) & (c < hi)]
             nz = v[v > 0]
             cells.append(f"{len(v):,}, {np.mean(v == 0):.2f}, {np.median(nz):.2f}" if len(nz) else f"{len(v):,}")
         print(f"| {lo:.2f}-{min(hi, 1.0):.2f} | {cells[0]} | {cells[1]} |")
+    print("\nPer Car (10th / 25th / 50th / 75th / 90th percentile over the Cars):")
+    print("| side | Cars | share read 0 | nonzero median |")
+    print("|---|---|---|---|")
+    for name, (_, _, cars) in sides.items():
+        q = (lambda v: " / ".join(f"{x:.2f}" for x in np.nanpercentile(v, PERCENTILES)))
+        print(f"| {name} | {len(cars)} | {q(cars[:, 0])} | {q(cars[:, 1])} |")
 
 
 if __name__ == "__main__":
