@@ -21,6 +21,8 @@ COLUMNS = ("range", "x", "y", "z", "reflectance")
 def scan_moments(root: Path) -> tuple[int, np.ndarray, np.ndarray]:
     """Frames, and the per-point mean and SD of each of COLUMNS over every scan of `root`."""
     files = sorted((root / "training" / "velodyne").glob("*.bin"))
+    if not files:
+        raise SystemExit(f"{root}: no scans in training/velodyne/")
     total, squares, n = np.zeros(len(COLUMNS)), np.zeros(len(COLUMNS)), 0
     for f in tqdm(files, desc=root.name, leave=False):
         p = read_velodyne(f).astype(np.float64)
@@ -28,8 +30,8 @@ def scan_moments(root: Path) -> tuple[int, np.ndarray, np.ndarray]:
         total += v.sum(axis=0)
         squares += (v ** 2).sum(axis=0)
         n += len(v)
-    mean = total / max(n, 1)
-    return len(files), mean, np.sqrt(np.maximum(squares / max(n, 1) - mean ** 2, 0.0))
+    mean = total / n
+    return len(files), mean, np.sqrt(np.maximum(squares / n - mean ** 2, 0.0))
 
 
 def main() -> None:
