@@ -40,6 +40,15 @@ contrast, gamma, greyscale) -> compression (JPEG). No op changes geometry: boxes
 - JPEG (p 0.2): re-encoded at quality 50-95 (cv2.imencode): compression blocking/ringing. KITTI
   itself is stored as PNG, so this is kept rare; it mostly suppresses renderer-specific high
   frequencies.
+- random convolution (off by default; `randconv_prob`): RandConv (Xu et al., "Robust and
+  Generalizable Visual Representation Learning via Random Convolutions", ICLR 2021), the scene's
+  textures and colours randomised rather than the camera's: the image, standardised per channel,
+  goes through one 3 -> 3 convolution with a kernel size drawn from {1, 3, 5, 7} and weights from
+  N(0, 1 / (3 k^2)) (He's fan-in normal, as the paper draws them), and is mixed with itself as
+  a x + (1 - a) conv(x), a ~ U(0, 1) (the paper's RandConv-mix). Local shape survives, local
+  texture and colour do not, so a detector cannot lean on the renderer's materials. The result is
+  given the input's per-channel mean and SD again (the paper feeds the standardised output to its
+  network; ours reads 8-bit images). It runs first, on the scene, before the camera ops.
 
 `AugmentConfig.off()` switches the whole set off (evaluation-like inputs).
 
@@ -99,12 +108,14 @@ class AugmentConfig:
     cutout_count: int = 3        # 1..cutout_count rectangles
     cutout_size: tuple[float, float] = (0.05, 0.3)  # rectangle height as a share of the image height
     cutout_max_cover: float = 0.5  # no labelled box more than this share covered (all rectangles together)
+    randconv_prob: float = 0.0   # RandConv-mix texture randomisation (module docstring); off: recipes before it
 
     def __post_init__(self):
         if self.mixup not in MIXUP_MODES:
             raise ValueError(f"unknown mixup mode {self.mixup!r}; choose one of {MIXUP_MODES}")
         for name in ("mosaic", "fliplr", "mixup_prob", "gain_prob", "contrast_prob", "gamma_prob", "grey_prob",
-                     "blur_prob", "motion_prob", "noise_prob", "jpeg_prob", "cutout_prob", "cutout_max_cover"):
+                     "blur_prob", "motion_prob", "noise_prob", "jpeg_prob", "cutout_prob", "cutout_max_cover",
+                     "randconv_prob"):
             v = getattr(self, name)
             if not 0 <= v <= 1:
                 raise ValueError(f"augmentation {name} must be a probability in [0, 1], got {v}")
@@ -292,6 +303,7 @@ def mix(a: Sample, b: Sample, cfg: AugmentConfig, rng: np.random.Generator) -> S
 
 KITTI_WIDTH = 1242            # px: blur sigma and motion length in AugmentConfig are KITTI pixels
 LUMA = np.array([0.299, 0.587, 0.114])  # Rec. 601, as cv2's RGB2GRAY
+RANDCONV_KERNELS = (1, 3, 5, 7)  # RandConv's kernel sizes (Xu et al. 2021)
 ENCODE_LEVELS = 4096          # linear intensity is quantised this finely before the sRGB encode LUT
 
 
@@ -307,12 +319,14 @@ class Photometric:
     noise: tuple[float, float] = (0.0, 0.0)   # full well, read noise (electrons); full well 0: none
     jpeg_quality: int = 0                     # 0: no re-encode
     cutout: int = 0                           # number of rectangles to place
-    seed: int = 0                             # of the noise and cut-out realisations
+    randconv: tuple[int, float] = (0, 0.0)    # kernel size, weight of the input in the mix; size 0: none
+    seed: int = 0                             # of the noise, cut-out and random-kernel realisations
 
 
 def draw_photometric(cfg: AugmentConfig, rng: np.random.Generator, px_scale: float = 1.0) -> Photometric:
-    """Draws one sample's photometric parameters: always 22 uniforms from rng, whatever is on.
-    px_scale converts KITTI pixels to working pixels (working width / KITTI_WIDTH)."""
+    """Draws one sample's photometric parameters: always 22 uniforms from rng, whatever is on
+    (the random convolution draws from a child of the sample's seed, so switching it on changes no
+    other draw). px_scale converts KITTI pixels to working pixels (working width / KITTI_WIDTH)."""
     u = rng.random(22)
     on = u[:9] < np.array([cfg.gain_prob, cfg.contrast_prob, cfg.gamma_prob, cfg.grey_prob, cfg.blur_prob,
                            cfg.motion_prob, cfg.noise_prob, cfg.jpeg_prob, cfg.cutout_prob])
@@ -332,16 +346,23 @@ def draw_photometric(cfg: AugmentConfig, rng: np.random.Generator, px_scale: flo
     lo, hi = cfg.jpeg_quality
     quality = min(lo + int(u[19] * (hi - lo + 1)), hi)
     count = min(1 + int(u[20] * cfg.cutout_count), cfg.cutout_count)
+    seed = int(u[21] * 2 ** 53)
+    r = np.random.default_rng([seed, 2]).random(3)
+    randconv = (RANDCONV_KERNELS[int(r[1] * len(RANDCONV_KERNELS))], float(r[2]))
     return Photometric(gain=gain if on[0] else (1.0, 1.0, 1.0), contrast=contrast if on[1] else 1.0,
                        gamma=gamma if on[2] else 1.0, grey=bool(on[3]), blur_sigma=sigma if on[4] else 0.0,
                        motion=(length, angle) if on[5] else (0.0, 0.0),
                        noise=(full_well, read) if on[6] else (0.0, 0.0), jpeg_quality=quality if on[7] else 0,
-                       cutout=count if on[8] else 0, seed=int(u[21] * 2 ** 53))
+                       cutout=count if on[8] else 0,
+                       randconv=randconv if r[0] < cfg.randconv_prob else (0, 0.0), seed=seed)
 
 
 def apply_photometric(img: np.ndarray, boxes: np.ndarray, p: Photometric, cfg: AugmentConfig) -> np.ndarray:
-    """Applies a draw in camera order (cut-out, blur, noise, tone, greyscale, JPEG); RGB uint8 in
-    and out, the input untouched; boxes only limit the cut-out (they are not changed)."""
+    """Applies a draw in camera order (random convolution of the scene, cut-out, blur, noise, tone,
+    greyscale, JPEG); RGB uint8 in and out, the input untouched; boxes only limit the cut-out (they
+    are not changed)."""
+    if p.randconv[0]:
+        img = random_convolution(img, p.randconv[0], p.randconv[1], np.random.default_rng([p.seed, 3]))
     if p.cutout:
         img = cutout(img, boxes, p.cutout, cfg.cutout_size, cfg.cutout_max_cover,
                      np.random.default_rng([p.seed, 0]))
@@ -358,6 +379,23 @@ def apply_photometric(img: np.ndarray, boxes: np.ndarray, p: Photometric, cfg: A
     if p.jpeg_quality:
         img = jpeg(img, p.jpeg_quality)
     return img
+
+
+def random_convolution(img: np.ndarray, k: int, keep: float, rng: np.random.Generator) -> np.ndarray:
+    """RandConv-mix (module docstring): keep * x + (1 - keep) * (W * x) on the per-channel
+    standardised image x, W a random 3 -> 3 k x k kernel, then the input's per-channel mean and SD
+    given back; RGB uint8 in and out."""
+    x = img.astype(np.float32)
+    mean, sd = x.mean(axis=(0, 1)), x.std(axis=(0, 1)) + 1e-3
+    x = (x - mean) / sd
+    w = rng.normal(0.0, 1.0 / math.sqrt(3 * k * k), size=(3, 3, k, k)).astype(np.float32)
+    out = np.empty_like(x)
+    for o in range(3):
+        out[..., o] = sum(cv2.filter2D(x[..., i], -1, w[o, i], borderType=cv2.BORDER_REFLECT_101)
+                          for i in range(3))
+    y = keep * x + (1 - keep) * out
+    y = (y - y.mean(axis=(0, 1))) / (y.std(axis=(0, 1)) + 1e-6) * sd + mean
+    return np.clip(np.rint(y), 0, 255).astype(np.uint8)
 
 
 def tone(img: np.ndarray, gain, contrast: float, gamma: float) -> np.ndarray:

@@ -16,6 +16,7 @@ from detector.augment import (
     draw_photometric,
     jpeg,
     motion_kernel,
+    random_convolution,
     sensor_noise,
     srgb_tables,
     standard_normal,
@@ -250,6 +251,47 @@ def test_cutout_through_the_augmenter_keeps_every_box(toy):
     assert n_changed >= 25
 
 
+def test_random_convolution_switched_on_changes_no_other_draw():
+    for i in range(20):
+        off = draw_photometric(AugmentConfig(**ALL_ON), np.random.default_rng([4, i]))
+        on = draw_photometric(AugmentConfig(**ALL_ON, randconv_prob=1.0), np.random.default_rng([4, i]))
+        assert off.randconv == (0, 0.0) and on.randconv[0] in (1, 3, 5, 7) and 0 <= on.randconv[1] < 1
+        assert replace(on, randconv=(0, 0.0)) == off
+    ks = [draw_photometric(AugmentConfig(randconv_prob=1.0), np.random.default_rng(i)).randconv[0] for i in range(200)]
+    assert set(ks) == {1, 3, 5, 7}
+    n = sum(draw_photometric(AugmentConfig(randconv_prob=0.5), np.random.default_rng(i)).randconv[0] > 0
+            for i in range(300))
+    assert 125 <= n <= 175  # 300 draws at p = 0.5: 150 +- 9 (sd)
+
+
+def test_random_convolution_of_size_one_is_an_affine_colour_map_with_the_input_statistics():
+    img = np.clip(np.random.default_rng(3).normal([120, 110, 100], [20, 15, 25], (64, 96, 3)), 0, 255)
+    img = img.astype(np.uint8)
+    out = random_convolution(img, 1, 0.3, np.random.default_rng(5))
+    assert out.shape == img.shape and out.dtype == np.uint8 and not np.array_equal(out, img)
+    x = np.c_[img.reshape(-1, 3).astype(np.float64), np.ones(img.shape[0] * img.shape[1])]
+    y = out.reshape(-1, 3).astype(np.float64)
+    inside = ((y > 0) & (y < 255)).all(axis=1)
+    coef, *_ = np.linalg.lstsq(x[inside], y[inside], rcond=None)
+    assert np.abs(x[inside] @ coef - y[inside]).max() < 0.55  # affine per pixel, up to rounding (0.5)
+    # each channel given the input's mean and SD back (rounding moves them a little)
+    assert inside.mean() > 0.999
+    assert np.allclose(y.mean(0), img.reshape(-1, 3).mean(0), atol=0.05)
+    assert np.allclose(y.std(0), img.reshape(-1, 3).std(0), rtol=0.01)
+
+
+def test_random_convolution_mixes_neighbours_and_is_seeded():
+    img = np.zeros((32, 32, 3), np.uint8)
+    img[16, 16] = 255  # one bright pixel on black: the kernel's footprint shows around it
+    rng = np.random.default_rng
+    for k in (3, 7):
+        out = random_convolution(img, k, 0.0, rng(9)).astype(int)
+        changed = np.argwhere((out != np.median(out, axis=(0, 1))).any(axis=2))
+        assert changed.min(0).tolist() == [16 - k // 2] * 2 and changed.max(0).tolist() == [16 + k // 2] * 2
+    assert np.array_equal(random_convolution(img, 5, 0.4, rng(1)), random_convolution(img, 5, 0.4, rng(1)))
+    assert not np.array_equal(random_convolution(img, 5, 0.4, rng(1)), random_convolution(img, 5, 0.4, rng(2)))
+
+
 def test_bad_photometric_config_is_named():
     with pytest.raises(ValueError, match="blur_sigma"):
         AugmentConfig(blur_sigma=(2.0, 1.0))
@@ -259,6 +301,8 @@ def test_bad_photometric_config_is_named():
         AugmentConfig(jpeg_quality=(50, 101))
     with pytest.raises(ValueError, match="cutout_max_cover"):
         AugmentConfig(cutout_max_cover=-0.1)
+    with pytest.raises(ValueError, match="randconv_prob"):
+        AugmentConfig(randconv_prob=2.0)
 
 
 def test_cli_wires_the_photometric_options_into_the_saved_config(tmp_path):
@@ -267,13 +311,14 @@ def test_cli_wires_the_photometric_options_into_the_saved_config(tmp_path):
     args = ["train-detector", "--data", str(root), "--out", str(tmp_path / "run"), "--epochs", "1",
             "--img-size", "128", "64", "--batch", "4", "--eval-every", "0", "--threads", "1",
             "--wb-gain", "0.2", "--blur-sigma", "0.5", "1.0", "--noise-prob", "0.9",
-            "--noise-full-well", "1000", "5000", "--jpeg-prob", "0.0", "--cutout-prob", "0.4"]
+            "--noise-full-well", "1000", "5000", "--jpeg-prob", "0.0", "--cutout-prob", "0.4",
+            "--randconv-prob", "0.3"]
     res = CliRunner().invoke(cli, args)
     assert res.exit_code == 0, res.output
     aug = torch.load(tmp_path / "run" / "weights.pt", weights_only=True)["train_config"]["augment"]
     assert aug["photometric"] is True and aug["gain"] == 0.2 and aug["blur_sigma"] == [0.5, 1.0]
     assert aug["noise_prob"] == 0.9 and aug["noise_full_well"] == [1000.0, 5000.0]
-    assert aug["jpeg_prob"] == 0.0 and aug["cutout_prob"] == 0.4
+    assert aug["jpeg_prob"] == 0.0 and aug["cutout_prob"] == 0.4 and aug["randconv_prob"] == 0.3
     assert AugmentConfig(**{k: tuple(v) if isinstance(v, list) else v for k, v in aug.items()}).gain == 0.2
     res = CliRunner().invoke(cli, [*args[:4], str(tmp_path / "run2"), *args[5:], "--no-photometric"])
     assert res.exit_code == 0, res.output
