@@ -43,7 +43,8 @@ contrast, gamma, greyscale) -> compression (JPEG). No op changes geometry: boxes
 - random convolution (off by default; `randconv_prob`): RandConv (Xu et al., "Robust and
   Generalizable Visual Representation Learning via Random Convolutions", ICLR 2021), the scene's
   textures and colours randomised rather than the camera's: the image, standardised per channel,
-  goes through one 3 -> 3 convolution with a kernel size drawn from {1, 3, 5, 7} and weights from
+  goes through one 3 -> 3 convolution with a kernel size drawn from {1, 3, 5, 7} (or the sizes
+  set in `randconv_kernels`; {1, 3} keeps the outline of an object a few pixels wide) and weights from
   N(0, 1 / (3 k^2)) (He's fan-in normal, as the paper draws them), and is mixed with itself as
   a x + (1 - a) conv(x), a ~ U(0, 1) (the paper's RandConv-mix). Local shape survives, local
   texture and colour do not, so a detector cannot lean on the renderer's materials. The result is
@@ -109,6 +110,7 @@ class AugmentConfig:
     cutout_size: tuple[float, float] = (0.05, 0.3)  # rectangle height as a share of the image height
     cutout_max_cover: float = 0.5  # no labelled box more than this share covered (all rectangles together)
     randconv_prob: float = 0.0   # RandConv-mix texture randomisation (module docstring); off: recipes before it
+    randconv_kernels: tuple[int, ...] = (1, 3, 5, 7)  # kernel sizes drawn uniformly (the paper's multi-scale set)
 
     def __post_init__(self):
         if self.mixup not in MIXUP_MODES:
@@ -136,6 +138,9 @@ class AugmentConfig:
             raise ValueError("augmentation jpeg_quality must be within [1, 100] and cutout_size within (0, 1]")
         if self.cutout_count < 1:
             raise ValueError(f"augmentation cutout_count must be at least 1, got {self.cutout_count}")
+        if not self.randconv_kernels or any(int(k) != k or k < 1 or k % 2 == 0 for k in self.randconv_kernels):
+            raise ValueError(f"augmentation randconv_kernels must be odd sizes >= 1, "
+                             f"got {self.randconv_kernels}")
 
     @staticmethod
     def off() -> AugmentConfig:
@@ -303,7 +308,6 @@ def mix(a: Sample, b: Sample, cfg: AugmentConfig, rng: np.random.Generator) -> S
 
 KITTI_WIDTH = 1242            # px: blur sigma and motion length in AugmentConfig are KITTI pixels
 LUMA = np.array([0.299, 0.587, 0.114])  # Rec. 601, as cv2's RGB2GRAY
-RANDCONV_KERNELS = (1, 3, 5, 7)  # RandConv's kernel sizes (Xu et al. 2021)
 ENCODE_LEVELS = 4096          # linear intensity is quantised this finely before the sRGB encode LUT
 
 
@@ -348,7 +352,8 @@ def draw_photometric(cfg: AugmentConfig, rng: np.random.Generator, px_scale: flo
     count = min(1 + int(u[20] * cfg.cutout_count), cfg.cutout_count)
     seed = int(u[21] * 2 ** 53)
     r = np.random.default_rng([seed, 2]).random(3)
-    randconv = (RANDCONV_KERNELS[int(r[1] * len(RANDCONV_KERNELS))], float(r[2]))
+    ks = cfg.randconv_kernels
+    randconv = (int(ks[int(r[1] * len(ks))]), float(r[2]))
     return Photometric(gain=gain if on[0] else (1.0, 1.0, 1.0), contrast=contrast if on[1] else 1.0,
                        gamma=gamma if on[2] else 1.0, grey=bool(on[3]), blur_sigma=sigma if on[4] else 0.0,
                        motion=(length, angle) if on[5] else (0.0, 0.0),

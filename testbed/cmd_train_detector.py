@@ -53,6 +53,10 @@ def _split(value: str) -> str | None:
 @click.option("--randconv-prob", default=0.0, show_default=True, type=click.FloatRange(0, 1),
               help="Probability of RandConv-mix texture randomisation (a random 1-7 px convolution mixed "
                    "with the image; detector/augment.py).")
+@click.option("--randconv-kernel", "randconv_kernels", multiple=True, type=click.IntRange(1),
+              default=(1, 3, 5, 7), show_default=True,
+              help="RandConv kernel sizes drawn uniformly (odd; repeat the option: --randconv-kernel 1 "
+                   "--randconv-kernel 3).")
 @click.option("--mixup", default="none", show_default=True, type=click.Choice(["none", "mixup", "thresholded"]),
               help="004 Mixup: plain, or only when the two images' boxes overlap below --mixup-iou.")
 @click.option("--mixup-prob", default=0.5, show_default=True, type=click.FloatRange(0, 1))
@@ -76,7 +80,7 @@ def train_detector(data: tuple[Path, ...], out: Path, preset: str, epochs: int, 
                    activation: str, box_loss: str, mosaic: float, scale: float, fliplr: float, hsv: bool,
                    photometric: bool, wb_gain: float, blur_sigma: tuple[float, float], noise_prob: float,
                    noise_full_well: tuple[float, float], jpeg_prob: float, cutout_prob: float,
-                   randconv_prob: float, mixup: str,
+                   randconv_prob: float, randconv_kernels: tuple[int, ...], mixup: str,
                    mixup_prob: float, mixup_iou: float, close_mosaic: int, train_split: str,
                    val_data: Path | None, val_split: str, eval_every: int, init_weights: Path | None,
                    seed: int, threads: int, resume: bool) -> None:
@@ -92,6 +96,7 @@ def train_detector(data: tuple[Path, ...], out: Path, preset: str, epochs: int, 
                             photometric=photometric, gain=wb_gain, blur_sigma=tuple(blur_sigma),
                             noise_prob=noise_prob, noise_full_well=tuple(noise_full_well),
                             jpeg_prob=jpeg_prob, cutout_prob=cutout_prob, randconv_prob=randconv_prob,
+                            randconv_kernels=tuple(randconv_kernels),
                             mixup=mixup, mixup_prob=mixup_prob, mixup_iou=mixup_iou)
         cfg = TrainConfig(data=tuple(str(d) for d in data), out=str(out), preset=preset, epochs=epochs,
                           img_size=tuple(img_size) if img_size else None, batch=batch, lr=lr,

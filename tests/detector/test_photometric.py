@@ -262,6 +262,13 @@ def test_random_convolution_switched_on_changes_no_other_draw():
     n = sum(draw_photometric(AugmentConfig(randconv_prob=0.5), np.random.default_rng(i)).randconv[0] > 0
             for i in range(300))
     assert 125 <= n <= 175  # 300 draws at p = 0.5: 150 +- 9 (sd)
+    small = [draw_photometric(AugmentConfig(randconv_prob=1.0, randconv_kernels=(1, 3)), np.random.default_rng(i))
+             for i in range(200)]
+    assert {p.randconv[0] for p in small} == {1, 3}
+    # a kernel set changes only which size is drawn, not the mix weight nor any other draw
+    same = draw_photometric(AugmentConfig(randconv_prob=1.0), np.random.default_rng(7))
+    assert replace(small[7], randconv=(0, 0.0)) == replace(same, randconv=(0, 0.0))
+    assert small[7].randconv[1] == same.randconv[1]
 
 
 def test_random_convolution_of_size_one_is_an_affine_colour_map_with_the_input_statistics():
@@ -303,6 +310,9 @@ def test_bad_photometric_config_is_named():
         AugmentConfig(cutout_max_cover=-0.1)
     with pytest.raises(ValueError, match="randconv_prob"):
         AugmentConfig(randconv_prob=2.0)
+    for bad in ((), (2,), (1, 0)):
+        with pytest.raises(ValueError, match="randconv_kernels"):
+            AugmentConfig(randconv_kernels=bad)
 
 
 def test_cli_wires_the_photometric_options_into_the_saved_config(tmp_path):
@@ -312,13 +322,14 @@ def test_cli_wires_the_photometric_options_into_the_saved_config(tmp_path):
             "--img-size", "128", "64", "--batch", "4", "--eval-every", "0", "--threads", "1",
             "--wb-gain", "0.2", "--blur-sigma", "0.5", "1.0", "--noise-prob", "0.9",
             "--noise-full-well", "1000", "5000", "--jpeg-prob", "0.0", "--cutout-prob", "0.4",
-            "--randconv-prob", "0.3"]
+            "--randconv-prob", "0.3", "--randconv-kernel", "1", "--randconv-kernel", "3"]
     res = CliRunner().invoke(cli, args)
     assert res.exit_code == 0, res.output
     aug = torch.load(tmp_path / "run" / "weights.pt", weights_only=True)["train_config"]["augment"]
     assert aug["photometric"] is True and aug["gain"] == 0.2 and aug["blur_sigma"] == [0.5, 1.0]
     assert aug["noise_prob"] == 0.9 and aug["noise_full_well"] == [1000.0, 5000.0]
     assert aug["jpeg_prob"] == 0.0 and aug["cutout_prob"] == 0.4 and aug["randconv_prob"] == 0.3
+    assert aug["randconv_kernels"] == [1, 3]
     assert AugmentConfig(**{k: tuple(v) if isinstance(v, list) else v for k, v in aug.items()}).gain == 0.2
     res = CliRunner().invoke(cli, [*args[:4], str(tmp_path / "run2"), *args[5:], "--no-photometric"])
     assert res.exit_code == 0, res.output
