@@ -337,3 +337,5 @@ def test_cli_wires_the_photometric_options_into_the_saved_config(tmp_path):
     assert aug["photometric"] is False
     res = CliRunner().invoke(cli, [*args[:4], str(tmp_path / "run3"), *args[5:], "--blur-sigma", "2", "1"])
     assert res.exit_code != 0 and "blur_sigma" in res.output
+    res = CliRunner().invoke(cli, [*args[:4], str(tmp_path / "run4"), *args[5:], "--randconv-kernel", "2"])
+    assert res.exit_code != 0 and "randconv_kernels" in res.output
