@@ -43,8 +43,8 @@ contrast, gamma, greyscale) -> compression (JPEG). No op changes geometry: boxes
 - random convolution (off by default; `randconv_prob`): RandConv (Xu et al., "Robust and
   Generalizable Visual Representation Learning via Random Convolutions", ICLR 2021), the scene's
   textures and colours randomised rather than the camera's: the image, standardised per channel,
-  goes through one 3 -> 3 convolution with a kernel size drawn from {1, 3, 5, 7} (or the sizes
-  set in `randconv_kernels`; {1, 3} keeps the outline of an object a few pixels wide) and weights from
+  goes through one 3 -> 3 convolution with a kernel size drawn from `randconv_kernels` (the
+  paper's {1, 3, 5, 7} by default) and weights from
   N(0, 1 / (3 k^2)) (He's fan-in normal, as the paper draws them), and is mixed with itself as
   a x + (1 - a) conv(x), a ~ U(0, 1) (the paper's RandConv-mix). Local shape survives, local
   texture and colour do not, so a detector cannot lean on the renderer's materials. The result is

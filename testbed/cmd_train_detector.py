@@ -51,8 +51,8 @@ def _split(value: str) -> str | None:
 @click.option("--cutout-prob", default=0.25, show_default=True, type=click.FloatRange(0, 1),
               help="Probability of 1-3 grey/noise rectangles (no box covered more than half).")
 @click.option("--randconv-prob", default=0.0, show_default=True, type=click.FloatRange(0, 1),
-              help="Probability of RandConv-mix texture randomisation (a random 1-7 px convolution mixed "
-                   "with the image; detector/augment.py).")
+              help="Probability of RandConv-mix texture randomisation (a random convolution, its size "
+                   "drawn from --randconv-kernel, mixed with the image; detector/augment.py).")
 @click.option("--randconv-kernel", "randconv_kernels", multiple=True, type=click.IntRange(1),
               default=(1, 3, 5, 7), show_default=True,
               help="RandConv kernel sizes drawn uniformly (odd; repeat the option: --randconv-kernel 1 "
