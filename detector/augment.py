@@ -50,6 +50,9 @@ contrast, gamma, greyscale) -> compression (JPEG). No op changes geometry: boxes
   texture and colour do not, so a detector cannot lean on the renderer's materials. The result is
   given the input's per-channel mean and SD again (the paper feeds the standardised output to its
   network; ours reads 8-bit images). It runs first, on the scene, before the camera ops.
+  The paper's full method also trains on pairs: `Augmenter.pair` gives one sample without and with
+  a random convolution, every other draw shared, for the consistency term that
+  `TrainConfig.randconv_consistency` weighs (detector/loss.py).
 
 `AugmentConfig.off()` switches the whole set off (evaluation-like inputs).
 
@@ -183,14 +186,33 @@ class Augmenter:
     def __call__(self, index: int, epoch: int, cfg: AugmentConfig | None = None) -> Sample:
         cfg = cfg or self.cfg
         rng = self.rng(epoch, index)
-        s = self._one(index, rng, cfg)
-        if cfg.mixup != "none" and rng.random() < cfg.mixup_prob:
-            partner = self._one(int(rng.integers(len(self.data))), rng, cfg)
-            s = mix(s, partner, cfg, rng)
+        s = self._scene(index, rng, cfg)
         if cfg.photometric:
             # one camera for the final image (after Mixup), so noise is not averaged down by the blend
             p = draw_photometric(cfg, rng, self.w / KITTI_WIDTH)
             s = Sample(apply_photometric(s.image, s.boxes, p, cfg), s.boxes, s.classes)
+        return s
+
+    def pair(self, index: int, epoch: int, cfg: AugmentConfig | None = None) -> tuple[Sample, Sample]:
+        """RandConv's consistency pair: one sample seen without and with a random convolution, every
+        other draw (geometry, flip, colour, camera, noise and cut-out realisations) shared. With
+        randconv_prob 0 the first view is exactly what __call__ builds."""
+        cfg = cfg or self.cfg
+        if not cfg.photometric:
+            raise ValueError("a RandConv pair needs the photometric set on (augmentation photometric)")
+        rng = self.rng(epoch, index)
+        s = self._scene(index, rng, cfg)
+        p = draw_photometric(replace(cfg, randconv_prob=1.0), rng, self.w / KITTI_WIDTH)
+        plain = replace(p, randconv=(0, 0.0))
+        return tuple(Sample(apply_photometric(s.image, s.boxes, q, cfg), s.boxes, s.classes)
+                     for q in (plain, p))
+
+    def _scene(self, index: int, rng: np.random.Generator, cfg: AugmentConfig) -> Sample:
+        """The sample before the photometric set: geometry, flip, colour jitter and Mixup."""
+        s = self._one(index, rng, cfg)
+        if cfg.mixup != "none" and rng.random() < cfg.mixup_prob:
+            partner = self._one(int(rng.integers(len(self.data))), rng, cfg)
+            s = mix(s, partner, cfg, rng)
         return s
 
     def _one(self, index: int, rng: np.random.Generator, cfg: AugmentConfig) -> Sample:

@@ -9,10 +9,12 @@ localisation quality, which is what a 0.7-IoU AP rewards.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import torch
 from torch import nn
+from torch.nn import functional as F
 
 from detector.boxes import aligned_iou, cxcywh_to_xyxy
 from detector.model import STRIDES, DetectHead
@@ -105,3 +107,33 @@ class DetectionLoss:
         lcls = lcls * self.g.cls * nc / 80
         parts = torch.stack((lbox, lobj, lcls)).detach()
         return (lbox + lobj + lcls) * bs, parts
+
+    def pair_consistency(self, raw: list[torch.Tensor]) -> torch.Tensor:
+        """RandConv's consistency term for a batch of pairs (images 2k and 2k+1 are one sample seen
+        two ways): the Jensen-Shannon divergence between the two views' objectness probabilities,
+        per cell, weighted and scaled as the objectness loss is, times the batch size as the total
+        loss is. Objectness only: it is the object/background decision that real frames get wrong
+        (trees and facades fired on), and boxes and classes are already supervised identically on
+        both views."""
+        if raw[0].shape[0] % 2:
+            raise ValueError(f"a batch of pairs needs an even number of images, got {raw[0].shape[0]}")
+        js = raw[0].new_zeros(())
+        for i, p in enumerate(raw):
+            x = p[..., 4]
+            js = js + bernoulli_js(x[0::2], x[1::2]).mean() * self.g.balance[i]
+        cells = sum(p.shape[2] * p.shape[3] for p in raw)
+        cells_640 = sum((640 // s) ** 2 for s in STRIDES)
+        return js * self.g.obj * cells / cells_640 * raw[0].shape[0]
+
+
+def bernoulli_js(xa: torch.Tensor, xb: torch.Tensor) -> torch.Tensor:
+    """Element-wise Jensen-Shannon divergence (nats) between Bernoulli(sigmoid(xa)) and
+    Bernoulli(sigmoid(xb)), from the logits in log space (no 0 * log 0 at saturated scores)."""
+    la, lb = F.logsigmoid(xa), F.logsigmoid(xb)          # log p
+    na, nb = F.logsigmoid(-xa), F.logsigmoid(-xb)        # log (1 - p)
+    lm = torch.logaddexp(la, lb) - math.log(2.0)         # log of the mean probability
+    nm = torch.logaddexp(na, nb) - math.log(2.0)
+    kl_a = la.exp() * (la - lm) + na.exp() * (na - nm)
+    kl_b = lb.exp() * (lb - lm) + nb.exp() * (nb - nm)
+    return 0.5 * (kl_a + kl_b)
+

@@ -48,6 +48,8 @@ class TrainConfig:
     activation: str = "hardswish"
     box_loss: str = "diou"
     augment: AugmentConfig = field(default_factory=AugmentConfig)
+    randconv_consistency: float = 0.0  # > 0: batches of RandConv pairs (Augmenter.pair) and this weight on
+                                       # their objectness consistency (DetectionLoss.pair_consistency)
     close_mosaic: int = 3        # last epochs on plain letterboxed images, flips, HSV and photometric
                                  # set kept (AugmentConfig.closing: why)
     train_split: str | None = "train"  # ImageSets name; None: every frame of the root
@@ -73,6 +75,15 @@ class TrainConfig:
             raise ValueError("epochs and batch must be at least 1")
         if self.img_size is not None and (self.img_size[0] % 32 or self.img_size[1] % 32):
             raise ValueError(f"img_size must be multiples of 32, got {self.img_size}")
+        if self.randconv_consistency < 0:
+            raise ValueError(f"randconv_consistency must be >= 0, got {self.randconv_consistency}")
+        if self.randconv_consistency > 0:
+            if self.batch % 2:
+                raise ValueError(f"randconv_consistency trains on pairs: batch must be even, got {self.batch}")
+            if not self.augment.photometric or self.augment.randconv_prob > 0:
+                raise ValueError("randconv_consistency draws its own RandConv view: it needs the photometric "
+                                 f"set on and augment randconv_prob 0, got photometric "
+                                 f"{self.augment.photometric}, randconv_prob {self.augment.randconv_prob}")
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -159,7 +170,7 @@ def evaluate_model(model: FlexiNet, input_size: tuple[int, int], root: str, spli
     return evaluate(gt, dt, classes=CLASSES, metrics=("2d",))
 
 
-CSV_FIELDS = ["epoch", "lr", "loss", "box", "obj", "cls", "seconds"] + \
+CSV_FIELDS = ["epoch", "lr", "loss", "box", "obj", "cls", "cons", "seconds"] + \
     [f"{c}_2d_R40_{d}" for c in CLASSES for d in DIFFICULTIES]
 
 
@@ -219,18 +230,32 @@ def _set_lr(opt: torch.optim.SGD, cfg: TrainConfig, it: int, epoch_pos: float, w
 def _train_epoch(cfg: TrainConfig, epoch: int, n: int, model: FlexiNet, criterion: DetectionLoss,
                  opt: torch.optim.SGD, ema: ModelEMA, aug: Augmenter) -> list[float]:
     """One epoch over the n images in an order seeded by (seed, epoch), so a resumed run repeats
-    it exactly; returns the mean total, box, obj and cls losses per batch."""
-    nb = math.ceil(n / cfg.batch)
+    it exactly; returns the mean total, box, obj, cls and consistency losses per batch. With
+    randconv_consistency a batch holds batch / 2 images, each as a RandConv pair."""
+    pairs = cfg.randconv_consistency > 0
+    per = cfg.batch // 2 if pairs else cfg.batch
+    nb = math.ceil(n / per)
     warmup_iters = max(round(cfg.warmup_epochs * nb), 1)
     model.train()
     acfg = cfg.augment if epoch < cfg.epochs - cfg.close_mosaic else cfg.augment.closing()
     order = np.random.default_rng([cfg.seed, epoch, 1 << 20]).permutation(n)
-    sums = torch.zeros(4)
+    sums = torch.zeros(5)
     bar = tqdm(range(nb), desc=f"epoch {epoch + 1}/{cfg.epochs}", disable=not cfg.progress, leave=False)
     for bi in bar:
         _set_lr(opt, cfg, epoch * nb + bi, epoch + bi / nb, warmup_iters)
-        imgs, targets = collate([aug(int(i), epoch, acfg) for i in order[bi * cfg.batch:(bi + 1) * cfg.batch]])
-        loss, parts = criterion(model(imgs), targets)
+        chunk = [int(i) for i in order[bi * per:(bi + 1) * per]]
+        if pairs:
+            imgs, targets = collate([v for i in chunk for v in aug.pair(i, epoch, acfg)])
+        else:
+            imgs, targets = collate([aug(i, epoch, acfg) for i in chunk])
+        raw = model(imgs)
+        loss, parts = criterion(raw, targets)
+        if pairs:
+            cons = cfg.randconv_consistency * criterion.pair_consistency(raw)
+            loss = loss + cons
+            parts = torch.cat((parts, (cons / imgs.shape[0]).detach().view(1)))
+        else:
+            parts = torch.cat((parts, parts.new_zeros(1)))
         opt.zero_grad(set_to_none=True)
         loss.backward()
         nn.utils.clip_grad_norm_(model.parameters(), 10.0)  # guards the first, large-loss steps
@@ -278,6 +303,8 @@ def train(cfg: TrainConfig, resume: bool = False, stop_after: int | None = None)
         avg = _train_epoch(cfg, epoch, n, model, criterion, opt, ema, aug)
         row = {"epoch": epoch + 1, "lr": opt.param_groups[0]["lr"], "loss": avg[0], "box": avg[1],
                "obj": avg[2], "cls": avg[3], "seconds": time.time() - t0}
+        if cfg.randconv_consistency > 0:
+            row["cons"] = avg[4]
         if cfg.eval_every and ((epoch + 1) % cfg.eval_every == 0 or epoch + 1 == cfg.epochs):
             _add_ap(row, cfg, ema.ema, img_size)
         history.append(row)
@@ -325,8 +352,9 @@ def write_history(out: Path, history: list[dict], plot: bool = True) -> None:
     from kitti.io import atomic_path
     ep = [r["epoch"] for r in history]
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 4))
-    for k in ("loss", "box", "obj", "cls"):
-        a1.plot(ep, [r[k] for r in history], label=k)
+    for k in ("loss", "box", "obj", "cls", "cons"):
+        if k in history[-1]:
+            a1.plot(ep, [r.get(k) for r in history], label=k)
     a1.set_xlabel("epoch"); a1.set_ylabel("loss per image"); a1.set_yscale("log"); a1.legend()
     for c in CLASSES:
         key = f"{c}_2d_R40_moderate"

@@ -299,6 +299,35 @@ def test_random_convolution_mixes_neighbours_and_is_seeded():
     assert not np.array_equal(random_convolution(img, 5, 0.4, rng(1)), random_convolution(img, 5, 0.4, rng(2)))
 
 
+def test_randconv_pair_is_the_plain_sample_and_its_convolved_twin(toy):
+    cfg = AugmentConfig(**ALL_ON, randconv_kernels=(1,), mosaic=0.5)
+    aug = Augmenter(toy, cfg, seed=4)
+    differ = 0
+    for i in range(len(toy)):
+        plain, conv = aug.pair(i, 2)
+        ref = aug(i, 2)  # randconv_prob 0: the first view is what plain training draws
+        assert plain.image.tobytes() == ref.image.tobytes()
+        assert np.array_equal(plain.boxes, ref.boxes) and np.array_equal(conv.boxes, ref.boxes)
+        assert np.array_equal(plain.classes, conv.classes)
+        differ += not np.array_equal(plain.image, conv.image)
+        again = aug.pair(i, 2)
+        assert again[0].image.tobytes() == plain.image.tobytes() and again[1].image.tobytes() == conv.image.tobytes()
+    assert differ >= len(toy) - 1  # one draw here keeps 99.8 % of the input: greyscale rounds it away
+    # with every camera op off, the twin is exactly the random convolution of the first view that the
+    # sample's own draw names (kernel, mix weight, realisation): no other draw differs between them
+    bare = Augmenter(toy, only(), seed=4)
+    for i in range(len(toy)):
+        plain, conv = bare.pair(i, 1)
+        rng = bare.rng(1, i)
+        bare._scene(i, rng, bare.cfg)  # the geometry and colour draws come first
+        p = draw_photometric(AugmentConfig(**ALL_OFF, randconv_prob=1.0), rng, bare.w / 1242)
+        assert p.randconv[0] in (1, 3, 5, 7)
+        want = random_convolution(plain.image, *p.randconv, np.random.default_rng([p.seed, 3]))
+        assert want.tobytes() == conv.image.tobytes()
+    with pytest.raises(ValueError, match="photometric"):
+        Augmenter(toy, replace(cfg, photometric=False), seed=4).pair(0, 0)
+
+
 def test_bad_photometric_config_is_named():
     with pytest.raises(ValueError, match="blur_sigma"):
         AugmentConfig(blur_sigma=(2.0, 1.0))
@@ -339,3 +368,11 @@ def test_cli_wires_the_photometric_options_into_the_saved_config(tmp_path):
     assert res.exit_code != 0 and "blur_sigma" in res.output
     res = CliRunner().invoke(cli, [*args[:4], str(tmp_path / "run4"), *args[5:], "--randconv-kernel", "2"])
     assert res.exit_code != 0 and "randconv_kernels" in res.output
+    # the consistency pairs draw their own RandConv view: with --randconv-prob too it is refused by name
+    res = CliRunner().invoke(cli, [*args[:4], str(tmp_path / "run5"), *args[5:], "--randconv-consistency", "12"])
+    assert res.exit_code != 0 and "randconv_prob" in res.output
+    pairs = [a for a in args if a not in ("--randconv-prob", "0.3")]
+    res = CliRunner().invoke(cli, [*pairs[:4], str(tmp_path / "run6"), *pairs[5:], "--randconv-consistency", "12"])
+    assert res.exit_code == 0, res.output
+    saved = torch.load(tmp_path / "run6" / "weights.pt", weights_only=True)["train_config"]
+    assert saved["randconv_consistency"] == 12.0 and saved["augment"]["randconv_kernels"] == [1, 3]
