@@ -136,4 +136,3 @@ def bernoulli_js(xa: torch.Tensor, xb: torch.Tensor) -> torch.Tensor:
     kl_a = la.exp() * (la - lm) + na.exp() * (na - nm)
     kl_b = lb.exp() * (lb - lm) + nb.exp() * (nb - nm)
     return 0.5 * (kl_a + kl_b)
-

@@ -231,7 +231,8 @@ def _train_epoch(cfg: TrainConfig, epoch: int, n: int, model: FlexiNet, criterio
                  opt: torch.optim.SGD, ema: ModelEMA, aug: Augmenter) -> list[float]:
     """One epoch over the n images in an order seeded by (seed, epoch), so a resumed run repeats
     it exactly; returns the mean total, box, obj, cls and consistency losses per batch. With
-    randconv_consistency a batch holds batch / 2 images, each as a RandConv pair."""
+    randconv_consistency a batch holds batch / 2 images, each as a RandConv pair, so an epoch has
+    twice the iterations."""
     pairs = cfg.randconv_consistency > 0
     per = cfg.batch // 2 if pairs else cfg.batch
     nb = math.ceil(n / per)
