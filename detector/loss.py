@@ -20,6 +20,7 @@ from detector.boxes import aligned_iou, cxcywh_to_xyxy
 from detector.model import STRIDES, DetectHead
 
 BOX_LOSSES = ("diou", "giou", "ciou")
+CONSISTENCY_TARGETS = ("mutual", "plain")
 
 
 @dataclass(frozen=True)
@@ -108,22 +109,27 @@ class DetectionLoss:
         parts = torch.stack((lbox, lobj, lcls)).detach()
         return (lbox + lobj + lcls) * bs, parts
 
-    def pair_consistency(self, raw: list[torch.Tensor]) -> torch.Tensor:
+    def pair_consistency(self, raw: list[torch.Tensor], target: str = "mutual") -> torch.Tensor:
         """RandConv's consistency term for a batch of pairs (images 2k and 2k+1 are one sample seen
-        two ways): the Jensen-Shannon divergence between the two views' objectness probabilities,
-        per cell, weighted and scaled as the objectness loss is, times the batch size as the total
-        loss is. Objectness only: it is the object/background decision that real frames get wrong
-        (trees and facades fired on), and boxes and classes are already supervised identically on
-        both views."""
+        plain and convolved): per cell, the Jensen-Shannon divergence between the two views'
+        objectness probabilities ("mutual"), or the KL divergence from the plain view's, detached,
+        to the convolved view's ("plain": the plain view is a fixed target and learns from the
+        detection loss alone); weighted and scaled as the objectness loss is, times the batch size
+        as the total loss is. Objectness only: it is the object/background decision that real
+        frames get wrong (trees and facades fired on), and boxes and classes are already supervised
+        identically on both views."""
+        if target not in CONSISTENCY_TARGETS:
+            raise ValueError(f"unknown consistency target {target!r}; choose one of {CONSISTENCY_TARGETS}")
         if raw[0].shape[0] % 2:
             raise ValueError(f"a batch of pairs needs an even number of images, got {raw[0].shape[0]}")
-        js = raw[0].new_zeros(())
+        total = raw[0].new_zeros(())
         for i, p in enumerate(raw):
             x = p[..., 4]
-            js = js + bernoulli_js(x[0::2], x[1::2]).mean() * self.g.balance[i]
+            d = bernoulli_js(x[0::2], x[1::2]) if target == "mutual" else bernoulli_kl(x[0::2].detach(), x[1::2])
+            total = total + d.mean() * self.g.balance[i]
         cells = sum(p.shape[2] * p.shape[3] for p in raw)
         cells_640 = sum((640 // s) ** 2 for s in STRIDES)
-        return js * self.g.obj * cells / cells_640 * raw[0].shape[0]
+        return total * self.g.obj * cells / cells_640 * raw[0].shape[0]
 
 
 def bernoulli_js(xa: torch.Tensor, xb: torch.Tensor) -> torch.Tensor:
@@ -136,3 +142,10 @@ def bernoulli_js(xa: torch.Tensor, xb: torch.Tensor) -> torch.Tensor:
     kl_a = la.exp() * (la - lm) + na.exp() * (na - nm)
     kl_b = lb.exp() * (lb - lm) + nb.exp() * (nb - nm)
     return 0.5 * (kl_a + kl_b)
+
+
+def bernoulli_kl(xp: torch.Tensor, xq: torch.Tensor) -> torch.Tensor:
+    """Element-wise KL(Bernoulli(sigmoid(xp)) || Bernoulli(sigmoid(xq))) in nats, from the logits."""
+    lp, lq = F.logsigmoid(xp), F.logsigmoid(xq)
+    np_, nq = F.logsigmoid(-xp), F.logsigmoid(-xq)
+    return lp.exp() * (lp - lq) + np_.exp() * (np_ - nq)

@@ -24,7 +24,7 @@ from detector.augment import AugmentConfig, Augmenter
 from detector.boxes import input_size_for
 from detector.data import CLASSES, DetectionData
 from detector.infer import Detector, save_checkpoint
-from detector.loss import DetectionLoss
+from detector.loss import CONSISTENCY_TARGETS, DetectionLoss
 from detector.model import PRESETS, FlexiNet, ModelConfig
 from kitti.dataset import KittiDataset
 from kitti.eval.protocol import DIFFICULTIES
@@ -50,6 +50,7 @@ class TrainConfig:
     augment: AugmentConfig = field(default_factory=AugmentConfig)
     randconv_consistency: float = 0.0  # > 0: batches of RandConv pairs (Augmenter.pair) and this weight on
                                        # their objectness consistency (DetectionLoss.pair_consistency)
+    randconv_consistency_target: str = "mutual"  # mutual | plain (DetectionLoss.pair_consistency)
     close_mosaic: int = 3        # last epochs on plain letterboxed images, flips, HSV and photometric
                                  # set kept (AugmentConfig.closing: why)
     train_split: str | None = "train"  # ImageSets name; None: every frame of the root
@@ -75,6 +76,9 @@ class TrainConfig:
             raise ValueError("epochs and batch must be at least 1")
         if self.img_size is not None and (self.img_size[0] % 32 or self.img_size[1] % 32):
             raise ValueError(f"img_size must be multiples of 32, got {self.img_size}")
+        if self.randconv_consistency_target not in CONSISTENCY_TARGETS:
+            raise ValueError(f"randconv_consistency_target must be one of {CONSISTENCY_TARGETS}, "
+                             f"got {self.randconv_consistency_target!r}")
         if self.randconv_consistency < 0:
             raise ValueError(f"randconv_consistency must be >= 0, got {self.randconv_consistency}")
         if self.randconv_consistency > 0:
@@ -252,7 +256,7 @@ def _train_epoch(cfg: TrainConfig, epoch: int, n: int, model: FlexiNet, criterio
         raw = model(imgs)
         loss, parts = criterion(raw, targets)
         if pairs:
-            cons = cfg.randconv_consistency * criterion.pair_consistency(raw)
+            cons = cfg.randconv_consistency * criterion.pair_consistency(raw, cfg.randconv_consistency_target)
             loss = loss + cons
             parts = torch.cat((parts, (cons / imgs.shape[0]).detach().view(1)))
         else:

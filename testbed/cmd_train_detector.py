@@ -60,8 +60,12 @@ def _split(value: str) -> str | None:
 @click.option("--randconv-consistency", default=0.0, show_default=True, type=click.FloatRange(0),
               help="Weight of RandConv's consistency term; > 0 builds each batch of --batch images from "
                    "--batch/2 samples, each seen without and with a random convolution, and adds this "
-                   "times the Jensen-Shannon divergence of their objectness (detector/loss.py). Needs "
-                   "--randconv-prob 0.")
+                   "times a divergence of their objectness (--randconv-consistency-target; "
+                   "detector/loss.py). Needs --randconv-prob 0.")
+@click.option("--randconv-consistency-target", default="mutual", show_default=True,
+              type=click.Choice(["mutual", "plain"]),
+              help="mutual: Jensen-Shannon divergence, both views learn from it; plain: KL from the plain "
+                   "view's objectness, held fixed, to the convolved view's.")
 @click.option("--mixup", default="none", show_default=True, type=click.Choice(["none", "mixup", "thresholded"]),
               help="004 Mixup: plain, or only when the two images' boxes overlap below --mixup-iou.")
 @click.option("--mixup-prob", default=0.5, show_default=True, type=click.FloatRange(0, 1))
@@ -86,7 +90,7 @@ def train_detector(data: tuple[Path, ...], out: Path, preset: str, epochs: int, 
                    photometric: bool, wb_gain: float, blur_sigma: tuple[float, float], noise_prob: float,
                    noise_full_well: tuple[float, float], jpeg_prob: float, cutout_prob: float,
                    randconv_prob: float, randconv_kernels: tuple[int, ...], randconv_consistency: float,
-                   mixup: str,
+                   randconv_consistency_target: str, mixup: str,
                    mixup_prob: float, mixup_iou: float, close_mosaic: int, train_split: str,
                    val_data: Path | None, val_split: str, eval_every: int, init_weights: Path | None,
                    seed: int, threads: int, resume: bool) -> None:
@@ -109,6 +113,7 @@ def train_detector(data: tuple[Path, ...], out: Path, preset: str, epochs: int, 
                           momentum=momentum, weight_decay=weight_decay, warmup_epochs=warmup_epochs,
                           schedule=schedule, activation=activation, box_loss=box_loss, augment=aug,
                           randconv_consistency=randconv_consistency,
+                          randconv_consistency_target=randconv_consistency_target,
                           close_mosaic=close_mosaic, train_split=_split(train_split),
                           val_split=_split(val_split), val_data=str(val_data) if val_data else None,
                           eval_every=eval_every, init=str(init_weights) if init_weights else None,

@@ -7,7 +7,7 @@ import pytest
 import torch
 
 from detector.augment import AugmentConfig
-from detector.loss import DetectionLoss, bernoulli_js
+from detector.loss import DetectionLoss, bernoulli_js, bernoulli_kl
 from detector.model import FlexiNet, ModelConfig
 from detector.train import TrainConfig, train
 from tests.detector.toydata import write_toy_dataset
@@ -53,6 +53,27 @@ def test_pair_consistency_is_zero_for_twins_and_scaled_as_objectness():
         crit.pair_consistency([p[:1] for p in other])
 
 
+def test_plain_target_is_a_fixed_kl_target():
+    # KL(0.5 || 0.75) = 0.5 ln(2/3) + 0.5 ln 2 = 0.143841
+    assert bernoulli_kl(torch.tensor([0.0]), torch.tensor([math.log(3.0)])).item() == pytest.approx(0.143841, abs=1e-6)
+    assert bernoulli_kl(torch.tensor([2.0]), torch.tensor([2.0])).item() == pytest.approx(0.0, abs=1e-7)
+    head = FlexiNet(ModelConfig.from_preset("small", num_classes=3)).head
+    crit = DetectionLoss(head)
+    gen = torch.Generator().manual_seed(1)
+    raw = [(torch.randn(4, head.na, h, w, 8, generator=gen, dtype=torch.float64) * 3).requires_grad_()
+           for w, h in [(16, 8), (8, 4), (4, 2)]]
+    got = crit.pair_consistency(raw, "plain")
+    want = sum(bernoulli_kl(p[0::2, ..., 4], p[1::2, ..., 4]).mean() * b for p, b in zip(raw, crit.g.balance))
+    want = want * crit.g.obj * (16 * 8 + 8 * 4 + 4 * 2) / (80 ** 2 + 40 ** 2 + 20 ** 2) * 4
+    assert got.item() == pytest.approx(want.item(), rel=1e-9)
+    got.backward()
+    for p in raw:  # the plain views (even images) get no gradient, the convolved ones do
+        assert torch.count_nonzero(p.grad[0::2]) == 0 and torch.count_nonzero(p.grad[1::2, ..., 4]) > 0
+        assert torch.count_nonzero(p.grad[1::2, ..., :4]) == 0  # objectness only
+    with pytest.raises(ValueError, match="consistency target"):
+        crit.pair_consistency(raw, "both")
+
+
 def test_training_on_pairs_logs_the_term_and_config_is_checked(tmp_path):
     root = write_toy_dataset(tmp_path / "ds", 6, seed=5, size=(128, 64), max_objects=3)
     base = dict(data=str(root), img_size=(128, 64), epochs=1, batch=4, eval_every=0, progress=False,
@@ -67,7 +88,8 @@ def test_training_on_pairs_logs_the_term_and_config_is_checked(tmp_path):
     for bad, field in ((dict(randconv_consistency=-1.0), "randconv_consistency"),
                        (dict(randconv_consistency=1.0, batch=3), "batch"),
                        (dict(randconv_consistency=1.0, augment=AugmentConfig(randconv_prob=0.5)), "randconv_prob"),
-                       (dict(randconv_consistency=1.0, augment=AugmentConfig(photometric=False)), "photometric")):
+                       (dict(randconv_consistency=1.0, augment=AugmentConfig(photometric=False)), "photometric"),
+                       (dict(randconv_consistency=1.0, randconv_consistency_target="both"), "randconv_consistency_target")):
         with pytest.raises(ValueError, match=field):
             TrainConfig(**{**base, "out": str(tmp_path / "x"), **bad})
     assert np.isfinite(cons)

@@ -376,3 +376,9 @@ def test_cli_wires_the_photometric_options_into_the_saved_config(tmp_path):
     assert res.exit_code == 0, res.output
     saved = torch.load(tmp_path / "run6" / "weights.pt", weights_only=True)["train_config"]
     assert saved["randconv_consistency"] == 12.0 and saved["augment"]["randconv_kernels"] == [1, 3]
+    assert saved["randconv_consistency_target"] == "mutual"
+    res = CliRunner().invoke(cli, [*pairs[:4], str(tmp_path / "run7"), *pairs[5:], "--randconv-consistency", "12",
+                                   "--randconv-consistency-target", "plain"])
+    assert res.exit_code == 0, res.output
+    saved = torch.load(tmp_path / "run7" / "weights.pt", weights_only=True)["train_config"]
+    assert saved["randconv_consistency_target"] == "plain"
