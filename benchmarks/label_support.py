@@ -22,9 +22,9 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from kitti.boxes import points_in_boxes
 from kitti.dataset import KittiDataset
 from kitti.eval.protocol import MIN_HEIGHT
+from testbed.fidelity.lidar import returns_in_box
 
 CLASSES = ("Car", "Pedestrian", "Cyclist")
 DIST_EDGES = (0.0, 20.0, 40.0, 60.0, 80.0, np.inf)  # m, ground (x-z) distance of the label
@@ -42,11 +42,10 @@ def support(root: Path) -> dict[str, np.ndarray]:
         if not objs or scan is None:
             continue
         rect = ds.calib(fid).lidar_to_rect(scan[:, :3].astype(np.float64))
+        x, z = np.ascontiguousarray(rect[:, 0]), np.ascontiguousarray(rect[:, 2])
         for o in objs:
             b = o.box7
-            reach = np.hypot(b[4], b[5]) / 2
-            near = rect[(np.abs(rect[:, 0] - b[0]) <= reach) & (np.abs(rect[:, 2] - b[2]) <= reach)]
-            n = int(points_in_boxes(near, b)[0].sum())
+            n = len(returns_in_box(rect, x, z, b))
             rows[o.type].append((n, float(np.hypot(b[0], b[2])), float(o.bbox[3] - o.bbox[1])))
     return {c: np.array(r, dtype=float).reshape(-1, 3) for c, r in rows.items()}
 

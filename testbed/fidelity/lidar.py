@@ -94,16 +94,20 @@ def _car_points(acc: Acc, rect: np.ndarray, refl: np.ndarray, cars: list[Object3
     x, z = np.ascontiguousarray(rect[:, 0]), np.ascontiguousarray(rect[:, 2])
     counts, zeros = [], []
     for o in cars:
-        b = o.box7
-        reach = np.hypot(b[4], b[5]) / 2  # a cheap square around the box first
-        near = _in_square(x, z, b[0], b[2], reach)
-        inside = refl[near][points_in_boxes(rect[near], b)[0]]
+        inside = refl[returns_in_box(rect, x, z, o.box7)]
         counts.append(len(inside))
         zeros.append(np.count_nonzero(inside == 0) / len(inside) if len(inside) else np.nan)
     acc.put("lidar.car_points", counts)
     acc.put("lidar.car_zero_share", zeros)
     acc.put("lidar.car_distance_m", [np.hypot(o.location[0], o.location[2]) for o in cars])
     acc.put("lidar.car_occluded", [o.occluded for o in cars])
+
+
+def returns_in_box(rect: np.ndarray, x: np.ndarray, z: np.ndarray, box7: np.ndarray) -> np.ndarray:
+    """Indices of the points (rect, with its x and z columns as contiguous arrays) inside a 3D box:
+    a cheap square around the box first, then the exact test."""
+    near = _in_square(x, z, box7[0], box7[2], np.hypot(box7[4], box7[5]) / 2)
+    return near[points_in_boxes(rect[near], box7)[0]]
 
 
 @numba.njit(cache=True, nogil=True)
