@@ -17,9 +17,10 @@ from pathlib import Path
 
 import numpy as np
 
-from kitti.eval.folders import load_folders
+from kitti.eval.annotations import load_annotations
 from kitti.eval.protocol import outside_difficulty
 from kitti.iou import iou_2d
+from kitti.splits import read_split
 
 EDGES = (25, 40, 60, 100, np.inf)  # px; 25 and 40 are the devkit's moderate and easy minimum heights
 MATCH_IOU, FP_IOU = 0.7, 0.5
@@ -55,16 +56,16 @@ def main() -> None:
           "by box height\n")
     print("| weights | " + " | ".join(bins) + " | unmatched Car detections a frame |")
     print("|---" * (len(bins) + 2) + "|")
-    counts = None
+    gt = load_annotations(args.data / "training" / "label_2", read_split(args.split) if args.split else None)
+    if not gt:
+        raise SystemExit(f"{args.data / 'training' / 'label_2'}: no label files (split {args.split})")
     for item in args.pred:
         name, _, folder = item.partition("=")
         if not folder:
             raise SystemExit(f"--pred {item!r}: expected NAME=DIR")
-        gt, pred = load_folders(args.data / "training" / "label_2", Path(folder), args.split, progress=False)
-        n, share, fp = by_height(gt, pred, args.score)
-        counts = n
+        n, share, fp = by_height(gt, load_annotations(folder, list(gt), missing_ok=True), args.score)
         print(f"| {name} | " + " | ".join(f"{100 * s:.1f} %" for s in share) + f" | {fp:.2f} |")
-    print("| labels | " + " | ".join(str(c) for c in counts) + " | |")
+    print("| labels | " + " | ".join(str(c) for c in n) + " | |")
 
 
 if __name__ == "__main__":

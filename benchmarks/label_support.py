@@ -8,7 +8,8 @@ for every labelled Car, Pedestrian and Cyclist (DontCare left out), the returns 
 .bin inside its 3D box, and prints per class and ground-distance bin the labels and the share of
 them on 0 and on fewer than 5, 10 and 20 returns; then the median ground distance and 2D box
 height of all labels and of those on at least 1, 5, 10 and 20 returns (what a rule asking that
-many returns would leave), and the share of them under 25 px, which no KITTI difficulty evaluates. The counts 1, 5, 10, 20 are reporting steps, not fitted thresholds.
+many returns would leave), and the share of them under 25 px, which no KITTI difficulty
+evaluates. The counts 1, 5, 10, 20 are reporting steps, not fitted thresholds.
 
     .venv/bin/python benchmarks/label_support.py --data data/fidelity/urban200_edges \
         --data ../shared/kitti_real_dev

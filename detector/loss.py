@@ -139,13 +139,14 @@ def bernoulli_js(xa: torch.Tensor, xb: torch.Tensor) -> torch.Tensor:
     na, nb = F.logsigmoid(-xa), F.logsigmoid(-xb)        # log (1 - p)
     lm = torch.logaddexp(la, lb) - math.log(2.0)         # log of the mean probability
     nm = torch.logaddexp(na, nb) - math.log(2.0)
-    kl_a = la.exp() * (la - lm) + na.exp() * (na - nm)
-    kl_b = lb.exp() * (lb - lm) + nb.exp() * (nb - nm)
-    return 0.5 * (kl_a + kl_b)
+    return 0.5 * (_kl_from_logs(la, na, lm, nm) + _kl_from_logs(lb, nb, lm, nm))
 
 
 def bernoulli_kl(xp: torch.Tensor, xq: torch.Tensor) -> torch.Tensor:
     """Element-wise KL(Bernoulli(sigmoid(xp)) || Bernoulli(sigmoid(xq))) in nats, from the logits."""
-    lp, lq = F.logsigmoid(xp), F.logsigmoid(xq)
-    np_, nq = F.logsigmoid(-xp), F.logsigmoid(-xq)
+    return _kl_from_logs(F.logsigmoid(xp), F.logsigmoid(-xp), F.logsigmoid(xq), F.logsigmoid(-xq))
+
+
+def _kl_from_logs(lp: torch.Tensor, np_: torch.Tensor, lq: torch.Tensor, nq: torch.Tensor) -> torch.Tensor:
+    """KL(Bernoulli(p) || Bernoulli(q)) from log p, log (1 - p), log q, log (1 - q)."""
     return lp.exp() * (lp - lq) + np_.exp() * (np_ - nq)
