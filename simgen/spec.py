@@ -15,6 +15,8 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 from .factors import factor
 
 VEHICLE_CLASSES = ("Car", "Van", "Truck", "Bus")
+# What an actor can be labelled (KITTI's types the generator builds).
+ActorClass = Literal["Car", "Van", "Truck", "Bus", "Pedestrian", "Cyclist", "Misc"]
 # Kinds of lot beside the street (clutter.frontage; simgen.scenery builds them).
 FRONTAGE_KINDS = ("row", "houses", "open", "green", "car_park")
 
@@ -223,6 +225,11 @@ class LabelRules(Strict):
     min_visible_share: float = Field(0.1, ge=0.0, le=1.0)
     occlusion_partly_below: float = Field(0.8, gt=0.0, le=1.0)  # visible share < this -> 1
     occlusion_largely_below: float = Field(0.3, gt=0.0, le=1.0)  # visible share < this -> 2
+    # Classes whose 2D box takes its left and right sides from the mesh's silhouette, top and
+    # bottom from the 3D box's projection. KITTI's object devkit: a fixed-size box fits a
+    # pedestrian badly, so its left/right boundaries were labelled again in the image (Mechanical
+    # Turk); every other class's 2D box is the projection.
+    silhouette_sides: tuple[ActorClass, ...] = ("Pedestrian",)
 
     @model_validator(mode="after")
     def _order(self) -> "LabelRules":
@@ -243,7 +250,7 @@ class UserMeshSpec(Strict):
     """A mesh file trimesh loads (OBJ/GLB/PLY...), frame x forward, y left, z up (or up: y)."""
 
     path: str
-    cls: Literal["Car", "Van", "Truck", "Bus", "Pedestrian", "Cyclist", "Misc"]
+    cls: ActorClass
     size: tuple[float, float, float] | None = None  # target h, w, l in metres
     share: float = Field(1.0, ge=0.0, le=1.0)  # share of the class's actors that use it
     up: Literal["z", "y"] = "z"

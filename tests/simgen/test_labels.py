@@ -3,11 +3,14 @@ angles, depth, the road plane."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from scipy.optimize import brentq
 
 from kitti.boxes import alpha_from_rotation_y, box_corners, project_boxes, wrap_angle
+from kitti.dataset import KittiDataset
 from simgen.labels import derive
 from simgen.meshes import build_actor_parts
 from simgen.render import render
@@ -194,3 +197,53 @@ def test_car_beside_the_camera_is_cut_at_the_near_plane_and_truncated():
     # Cut at a 5 cm near plane, the part beside the camera projects far outside the image.
     assert t.truncation > 0.9 and row.bbox[2] == world.rig.width - 1
     np.testing.assert_allclose(t.silhouette_bbox, mask_box(out.instance, 1), atol=1.0)
+
+
+PED = {"kind": "pedestrian", "dims": [1.76, 0.66, 0.84], "color": [0.2, 0.25, 0.4], "seed": 11}
+
+
+@pytest.mark.parametrize("x,y,yaw", [(9.0, 1.0, 0.3), (18.0, -2.5, 1.9)])
+def test_pedestrian_box_takes_its_sides_from_the_silhouette_and_its_top_and_bottom_from_the_3d_box(
+        x, y, yaw):
+    world = world_of([(PED, pose(x, y, yaw))], cls="Pedestrian")
+    out, (row,), t = _label(world)
+    size = (world.rig.width, world.rig.height)
+    proj = project_boxes(row.box7[None], world.rig.calib, size)[0]
+    np.testing.assert_allclose(row.bbox[[1, 3]], proj[[1, 3]], atol=1e-6)
+    np.testing.assert_array_equal(row.bbox[[0, 2]], t.silhouette_bbox[[0, 2]])
+    np.testing.assert_allclose(row.bbox[[0, 2]], mask_box(out.instance, 1)[[0, 2]], atol=1.0)
+    assert row.bbox[2] - row.bbox[0] < 0.95 * (proj[2] - proj[0])  # the body inside its box
+    # With no class named, the pedestrian's box is the projection, as every other class's.
+    _, (plain,), _ = _label(world, rules=RULES.model_copy(update={"silhouette_sides": ()}))
+    np.testing.assert_allclose(plain.bbox, proj, atol=1e-6)
+
+
+def test_silhouette_sides_refuses_a_class_the_generator_does_not_build():
+    with pytest.raises(ValueError, match="silhouette_sides"):
+        LabelRules(silhouette_sides=("Tram",))
+
+
+REAL = Path(__file__).resolve().parents[3] / "shared" / "kitti_real_dev"  # beside the repository
+
+
+@pytest.mark.skipif(not (REAL / "training" / "label_2").is_dir(),
+                    reason=f"the real KITTI dev frames are not at {REAL}")
+def test_real_kitti_pedestrian_boxes_are_narrower_than_their_3d_boxes_and_vehicle_boxes_are_not():
+    """The convention the generator copies, on real frames: untruncated pedestrians' 2D boxes are
+    narrower than their 3D boxes' projections, their tops and bottoms within 1.5 px of it; Cars'
+    and Vans' widths within 3 % of it."""
+    ds = KittiDataset(REAL)
+    ped, veh = [], []
+    for fid in ds.ids():
+        objs = [o for o in ds.labels(fid) if o.truncated == 0 and o.type in ("Pedestrian", "Car", "Van")]
+        if not objs:
+            continue
+        proj = project_boxes(np.stack([o.box7 for o in objs]), ds.calib(fid), ds.image_size(fid))
+        for o, p in zip(objs, proj):
+            width = (o.bbox[2] - o.bbox[0]) / (p[2] - p[0])
+            (ped if o.type == "Pedestrian" else veh).append((width, abs(o.bbox[1] - p[1]),
+                                                             abs(o.bbox[3] - p[3])))
+    ped, veh = np.array(ped), np.array(veh)
+    assert len(ped) == 3 and len(veh) == 37
+    assert np.all(ped[:, 0] < 0.9) and np.all(ped[:, 1:] < 1.5)
+    assert np.all(np.abs(veh[:, 0] - 1.0) < 0.03)
