@@ -5,8 +5,8 @@ Depends on numpy, numba (exact IoU and the evaluation's loops), imageio (images)
 testbed's own.
 """
 
-from .boxes import (alpha_from_rotation_y, box_corners, points_in_boxes, project_boxes,
-                    rotation_y_from_alpha)
+from .boxes import (alpha_from_rotation_y, box_corners, lidar_upright_corners, points_in_boxes,
+                    project_boxes, rotation_y_from_alpha)
 from .calib import Calibration, read_calib, write_calib
 from .dataset import KittiDataset
 from .errors import KittiFormatError
@@ -18,8 +18,8 @@ from .velodyne import read_velodyne, write_velodyne
 
 __all__ = [
     "Calibration", "KittiDataset", "KittiFormatError", "Object3D", "alpha_from_rotation_y",
-    "box_corners", "boxes7", "iou_2d", "iou_3d", "iou_bev", "points_in_boxes", "project_boxes",
-    "read_calib", "read_label", "read_plane", "read_split", "read_velodyne",
+    "box_corners", "boxes7", "iou_2d", "iou_3d", "iou_bev", "lidar_upright_corners",
+    "points_in_boxes", "project_boxes", "read_calib", "read_label", "read_plane", "read_split", "read_velodyne",
     "rotation_y_from_alpha", "write_calib", "write_label", "write_plane", "write_split",
     "write_velodyne",
 ]

@@ -51,7 +51,7 @@ from kitti.boxes import wrap_angle
 from kitti.calib import Calibration
 
 from .clusters import MIN_POINTS, object_returns
-from .mono import contact_of, solve_from_alpha, wrap_one
+from .mono import box_up_of, contact_of, solve_from_alpha, wrap_one
 from .placement import (
     FOCAL_PX,
     MAX_GROW_L,
@@ -198,7 +198,8 @@ class _Returns:
 
 def _fallback(box: Box2D, prior: Prior, view: _View, plane: np.ndarray) -> Lifted:
     sol = solve_from_alpha(prior.dims, prior.alpha, box.bbox, view.calib, view.image_size, plane,
-                           view.cam, cut_ok=True, contact=contact_of(box.type, view.outline))
+                           view.cam, cut_ok=True, contact=contact_of(box.type, view.outline),
+                           box_up=box_up_of(view.outline, view.calib))
     return Lifted(sol.location, sol.rotation_y, np.asarray(prior.dims, dtype=float),
                   quality=0.2 * _image_depth_trust(sol.location))
 
@@ -335,7 +336,8 @@ def _fit_box(box: Box2D, prior: Prior, cand: np.ndarray, height: np.ndarray, pts
     small = box.type in SMALL_CLASSES
     ry, T, dims, pinned, cost = _best_yaw(obj, prior, ry_prior, small, box, view, plane)
     dims = dims.copy()
-    dims[0] = height_from_box(T, dims, ry, box.bbox, view.outline, view.image_size[1], view.P)
+    dims[0] = height_from_box(T, dims, ry, box.bbox, view.outline, view.image_size[1], view.P,
+                              box_up_of(view.outline, view.calib))
     h, w, l = dims
     # claim this object's returns so a farther box does not take them as its own
     grown = np.array([T[0], T[1] + CLAIM_MARGIN, T[2], h + 2 * CLAIM_MARGIN,

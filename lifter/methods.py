@@ -86,25 +86,25 @@ def _mono_box(box: Box2D, prior: Prior, calib: Calibration, size, road, outline:
     border sides. Where the 2D box is the 3D box's projection, its top then gives the height."""
     import numpy as np
 
-    from .mono import contact_of, mono_quality, solve_weighing_alpha
+    from .mono import box_up_of, contact_of, mono_quality, solve_weighing_alpha
     from .placement import height_from_box
     from .road import plane_under
     from .types import Lifted
 
-    contact = contact_of(box.type, outline)
+    contact, up = contact_of(box.type, outline), box_up_of(outline, calib)
     plane = plane_under(road, box.centre[0], box.bbox[3], calib.P(2))
     try:
         sol = solve_weighing_alpha(prior.dims, prior.alpha, box.bbox, calib, size, plane,
-                                   contact=contact)
+                                   contact=contact, box_up=up)
         cut = 1.0
     except ValueError:  # cut by the border on too many sides
         sol = solve_weighing_alpha(prior.dims, prior.alpha, box.bbox, calib, size, plane,
-                                   cut_ok=True, contact=contact)
+                                   cut_ok=True, contact=contact, box_up=up)
         cut = 0.6
     quality = 0.5 * cut * mono_quality(sol, calib.P(2)[0, 0])
     dims = np.asarray(prior.dims, dtype=float).copy()
     dims[0] = height_from_box(sol.location, dims, sol.rotation_y, box.bbox, outline, size[1],
-                              calib.P(2))
+                              calib.P(2), up)
     return Lifted(sol.location, sol.rotation_y, dims, quality)
 
 

@@ -52,6 +52,17 @@ def contact_of(cls: str, outline: str = "silhouette") -> tuple[float, float]:
     return CONTACT.get(cls, (1.0, 1.0)) if outline == "silhouette" else (1.0, 1.0)
 
 
+def box_up_of(outline: str, calib: Calibration) -> np.ndarray | None:
+    """The up axis (rect frame) of the 3D box whose projection a 2D box is. KITTI's 2D boxes
+    ("box") project the box stood upright in the LiDAR's frame (`kitti.boxes.
+    lidar_upright_corners`): the LiDAR's z. A silhouette's object stands on the road: None (the
+    road's normal, or the camera's up without one)."""
+    if outline != "box":
+        return None
+    up = calib.lidar_to_rect(np.array([[0.0, 0.0, 1.0]])) - calib.lidar_to_rect(np.zeros((1, 3)))
+    return up[0] / np.linalg.norm(up[0])
+
+
 _ALL = np.arange(8)
 _TOP = np.arange(4, 8)
 _BOTTOM = np.arange(4)
@@ -137,7 +148,7 @@ class _Outline:
     P: np.ndarray
     image_size: tuple[int, int]
     bbox: np.ndarray           # [x1, y1, x2, y2] as floats
-    up: np.ndarray | None      # the road's normal (None: no road plane)
+    up: np.ndarray | None      # the box's up: `box_up`, else the road's normal (None: neither)
     rows: np.ndarray           # (sides, 4) per constrained side, its row P[axis] - s P[2] (scaled)
     on_feet: np.ndarray        # (sides,) the side is the bottom edge: touched by a ground contact
     A_pinv: np.ndarray         # (3, k) pseudo-inverse of the sides' rows and the road's (last)
@@ -154,22 +165,25 @@ _OUTLINES_KEPT = 64
 
 
 def _outline(bbox: np.ndarray, calib: Calibration, image_size: tuple[int, int],
-             plane: np.ndarray | None, cam: int, cut_ok: bool) -> _Outline:
+             plane: np.ndarray | None, cam: int, cut_ok: bool,
+             box_up: np.ndarray | None = None) -> _Outline:
     """The yaw-independent half of `solve_translation` (its arguments are documented there),
     built once per set of arguments."""
     P = calib.P(cam)
     key = (np.asarray(bbox, dtype=float).tobytes(), P.tobytes(), tuple(image_size),
-           None if plane is None else np.asarray(plane, dtype=float).tobytes(), cut_ok)
+           None if plane is None else np.asarray(plane, dtype=float).tobytes(), cut_ok,
+           None if box_up is None else np.asarray(box_up, dtype=float).tobytes())
     o = _OUTLINES.get(key)
     if o is None:
         if len(_OUTLINES) >= _OUTLINES_KEPT:
             _OUTLINES.clear()
-        o = _OUTLINES[key] = _build_outline(bbox, calib, image_size, plane, cam, cut_ok)
+        o = _OUTLINES[key] = _build_outline(bbox, calib, image_size, plane, cam, cut_ok, box_up)
     return o
 
 
 def _build_outline(bbox: np.ndarray, calib: Calibration, image_size: tuple[int, int],
-                   plane: np.ndarray | None, cam: int, cut_ok: bool) -> _Outline:
+                   plane: np.ndarray | None, cam: int, cut_ok: bool,
+                   box_up: np.ndarray | None = None) -> _Outline:
     P = calib.P(cam)
     W, H = image_size
     x1, y1, x2, y2 = (float(v) for v in bbox)
@@ -208,7 +222,8 @@ def _build_outline(bbox: np.ndarray, calib: Calibration, image_size: tuple[int, 
     if len(A) < 3:
         raise ValueError(f"box {np.asarray(bbox).tolist()} leaves {len(A)} constraints; "
                          f"3 are needed")
-    return _Outline(P, image_size, np.array([x1, y1, x2, y2]), None if plane is None else _up(plane),
+    up = np.asarray(box_up, dtype=float) if box_up is not None else None if plane is None else _up(plane)
+    return _Outline(P, image_size, np.array([x1, y1, x2, y2]), up,
                     np.array(rows).reshape(-1, 4), np.array(on_feet, dtype=bool),
                     np.linalg.pinv(np.array(A)), plane_rhs,
                     _grid(tuple(tuple(c.tolist()) for c in choices)), bottom_col, ground)
@@ -288,22 +303,27 @@ def _best_assignment(rows: np.ndarray, on_feet: np.ndarray, A_pinv: np.ndarray,
 def solve_translation(dims: np.ndarray, rotation_y: float, bbox: np.ndarray, calib: Calibration,
                       image_size: tuple[int, int], plane: np.ndarray | None = None,
                       cam: int = 2, cut_ok: bool = False,
-                      contact: tuple[float, float] = (1.0, 1.0)) -> MonoSolution:
+                      contact: tuple[float, float] = (1.0, 1.0),
+                      box_up: np.ndarray | None = None) -> MonoSolution:
     """Bottom-centre translation for a box of size `dims` (h, w, l) and yaw `rotation_y` whose
     projection fits `bbox` [x1, y1, x2, y2]. `plane` (a, b, c, d; rect frame) adds the constraint
     that the bottom centre lies on the road: with the bottom edge (the ground contact nearest the
     camera, at `contact` = (share of l, share of w) of the footprint) it fixes the depth (the top
     edge is then not used), and it still fixes it when the box is cut by the border.
     With `cut_ok`, a box cut on so many sides that fewer than 3 constraints remain uses its border
-    sides too; without it, that is an error.
+    sides too; without it, that is an error. `box_up` (rect frame; `box_up_of`) is the up axis of
+    the box the 2D box projects, when that is not the road's normal; the box returned is the
+    label's, upright in the camera frame about the same bottom centre.
     """
-    return _place(_outline(bbox, calib, image_size, plane, cam, cut_ok), dims, rotation_y, contact)
+    return _place(_outline(bbox, calib, image_size, plane, cam, cut_ok, box_up), dims, rotation_y,
+                  contact)
 
 
 def solve_from_alpha(dims: np.ndarray, alpha: float, bbox: np.ndarray, calib: Calibration,
                      image_size: tuple[int, int], plane: np.ndarray | None = None, cam: int = 2,
                      iters: int = 8, tol: float = 1e-5, cut_ok: bool = False,
-                     contact: tuple[float, float] = (1.0, 1.0)) -> MonoSolution:
+                     contact: tuple[float, float] = (1.0, 1.0),
+                     box_up: np.ndarray | None = None) -> MonoSolution:
     """As `solve_translation`, for a local orientation alpha: rotation_y = alpha + atan2(x, z)
     depends on the translation, so start from the ray through the 2D box centre and iterate (the
     ray angle moves little with the translation: converges in a few steps)."""
@@ -311,8 +331,8 @@ def solve_from_alpha(dims: np.ndarray, alpha: float, bbox: np.ndarray, calib: Ca
     v = 0.5 * (bbox[1] + bbox[3])
     ray = _pixel_at_depth(calib.P(cam), u, v, 10.0)
     ry = float(wrap_angle(alpha + np.arctan2(ray[0], ray[2])))
-    outline = _outline(bbox, calib, image_size, plane, cam, cut_ok)
-    if outline.up is not None:  # on a road: the whole iteration in one kernel
+    outline = _outline(bbox, calib, image_size, plane, cam, cut_ok, box_up)
+    if outline.up is not None:  # on a road or a known up: the whole iteration in one kernel
         o = outline
         h, w, l = (float(v) for v in dims)
         T, ry, err = _alpha_iterations(o.rows, o.on_feet, o.A_pinv, o.plane_rhs, o.combos,
@@ -378,7 +398,8 @@ def mono_quality(sol: MonoSolution, focal_px: float, camera_height: float = 1.65
 def solve_weighing_alpha(dims: np.ndarray, alpha: float, bbox: np.ndarray, calib: Calibration,
                          image_size: tuple[int, int], plane: np.ndarray | None = None,
                          cam: int = 2, cut_ok: bool = False,
-                         contact: tuple[float, float] = (1.0, 1.0)) -> MonoSolution:
+                         contact: tuple[float, float] = (1.0, 1.0),
+                         box_up: np.ndarray | None = None) -> MonoSolution:
     """As `solve_from_alpha`, with the orientation weighed against the 2D box: a box's width and
     height in the image change with its orientation (1.6 px per degree for a car seen from behind
     at 30 m), so the local orientations within 30 degrees of `alpha` are tried (10 degrees apart,
@@ -387,7 +408,7 @@ def solve_weighing_alpha(dims: np.ndarray, alpha: float, bbox: np.ndarray, calib
     degrees at times; on the generator's it is within a few."""
     def cost(a: float) -> tuple[float, MonoSolution]:
         sol = solve_from_alpha(dims, alpha + a, bbox, calib, image_size, plane, cam,
-                               cut_ok=cut_ok, contact=contact)
+                               cut_ok=cut_ok, contact=contact, box_up=box_up)
         return (sol.box_error_px / SIGMA_BOX_PX) ** 2 + (a / SIGMA_ALPHA) ** 2, sol
 
     tried = {float(a): cost(float(a)) for a in _COARSE}

@@ -62,11 +62,12 @@ def truth_priors(boxes: list[Box2D], labels: list[Object3D]) -> list[Prior]:
 
 def box_outline(data: str | Path, detections: Path | None, ids: list[str] | None = None) -> str:
     """How the 2D boxes to lift outline their objects (`lifter.methods.OUTLINES`). Labels: as
-    their files show it. KITTI's 2D box is the projection of the labelled 3D box (on the real dev
-    frames the projected bottom lies 0.8 % of the box's height from the labelled one, median);
-    the generator wrote the rendered silhouette until it took up KITTI's convention (2.4-2.7 %:
-    the lowest point is a tyre's contact, not the box's bottom corner). The median over the
-    dataset's first untruncated vehicles decides, at OUTLINE_GAP. Detections outline what the
+    their files show it. KITTI's 2D box is the projection of the labelled 3D box stood upright in
+    the LiDAR's frame (`kitti.boxes.lidar_upright_corners`; on the real dev frames the vehicles'
+    sides lie a median 0.2 px from it); the generator wrote the rendered silhouette until it took
+    up KITTI's convention (its bottom 2.4-2.7 % of the box's height above the projected one: the
+    lowest point is a tyre's contact, not the box's bottom corner). The median of that share
+    over the dataset's first untruncated vehicles decides, at OUTLINE_GAP. Detections outline what the
     detector was trained on: KITTI's boxes for a detector trained on KITTI, and the generator's
     since it took up KITTI's convention, on which the shipped FlexiNet (stage 7,
     `detector/weights/README.md`) was trained."""
@@ -78,7 +79,7 @@ def box_outline(data: str | Path, detections: Path | None, ids: list[str] | None
         calib, size = ds.calib(fid), ds.image_size(fid)
         for o in ds.labels(fid):
             if o.type in ("Car", "Van", "Truck") and o.truncated <= 0.05 and o.height_px >= 25:
-                bottom = project_boxes(o.box7[None], calib, size)[0][3]
+                bottom = project_boxes(o.box7[None], calib, size, upright="lidar")[0][3]
                 gaps.append((bottom - o.bbox[3]) / o.height_px)
         if len(gaps) >= OUTLINE_SAMPLE:
             break

@@ -311,36 +311,48 @@ def length_from_sides(T: np.ndarray, h: float, w: float, l: float, ry: float, sl
 HEIGHT_RANGE = (0.5, 1.6)
 
 
+# A box upright in the camera frame: its up axis (rect y points down).
+CAMERA_UP = np.array([0.0, -1.0, 0.0])
+
+
 @numba.njit(cache=True, nogil=True)
-def height_from_top(T: np.ndarray, dims: np.ndarray, ry: float, top: float, P: np.ndarray) -> float:
+def height_from_top(T: np.ndarray, dims: np.ndarray, ry: float, top: float, P: np.ndarray,
+                    up: np.ndarray = CAMERA_UP) -> float:
     """The height that puts the box's projected top edge at the 2D box's top `top` (`fit`'s step 5b, `mono`).
 
     A 2D box that is the projection of the 3D box (KITTI's labels, `outline` "box") has its top
-    at the highest-projecting of the four top corners. With the footprint and the bottom fixed,
-    each corner reaches row `top` at one height y_i (P's row equation, linear in y), and the
-    projected top reaches it at the lowest of those corners' heights: y = max_i y_i (rect y
-    points down). Kept only within HEIGHT_RANGE x the current height (a 2D box cut at the top,
-    or an object bigger than its box, says nothing about the height). A kernel: numpy spent
-    forty microseconds a box on four corners."""
+    at the highest-projecting of the four top corners. The box stands on its bottom centre T along
+    `up` (rect frame, unit: CAMERA_UP for the label's own box, the LiDAR's z for KITTI's 2D boxes,
+    `mono.box_up_of`), its footprint square to it with the heading (cos ry, -sin ry) seen from
+    above (as `mono.standing_corners`). With the footprint fixed, each top corner B_k + h up
+    reaches row `top` at one height h_k (P's row equation, linear in h), and the projected top
+    reaches it at the least of them. Kept only within HEIGHT_RANGE x the current height (a 2D box
+    cut at the top, or an object bigger than its box, says nothing about the height). A kernel:
+    numpy spent forty microseconds a box on four corners."""
     h, w, l = dims[0], dims[1], dims[2]
     c, s = np.cos(ry), np.sin(ry)
-    y_top = -np.inf
+    head = np.array([c, (up[2] * -s + up[0] * c) / -up[1], -s])  # in the footprint: up . head = 0
+    head /= np.sqrt(head[0] * head[0] + head[1] * head[1] + head[2] * head[2])
+    side = np.array([up[1] * head[2] - up[2] * head[1], up[2] * head[0] - up[0] * head[2],
+                     up[0] * head[1] - up[1] * head[0]])  # up x head
+    r = P[1] - top * P[2]
+    rise = r[0] * up[0] + r[1] * up[1] + r[2] * up[2]
+    h_new = np.inf
     for k in range(4):
         a = l / 2 if k < 2 else -l / 2
         b = w / 2 if k % 2 == 0 else -w / 2
-        x = T[0] + a * c + b * s
-        z = T[2] - a * s + b * c
-        num = top * (P[2, 0] * x + P[2, 2] * z + P[2, 3]) - (P[1, 0] * x + P[1, 2] * z + P[1, 3])
-        y_top = max(y_top, num / (P[1, 1] - top * P[2, 1]))
-    h_new = T[1] - y_top
+        foot = T + a * head + b * side
+        h_new = min(h_new, -(r[0] * foot[0] + r[1] * foot[1] + r[2] * foot[2] + r[3]) / rise)
     return h_new if HEIGHT_RANGE[0] * h <= h_new <= HEIGHT_RANGE[1] * h else h
 
 
 def height_from_box(T: np.ndarray, dims: np.ndarray, ry: float, bbox: np.ndarray, outline: str,
-                    image_height: int, P: np.ndarray) -> float:
+                    image_height: int, P: np.ndarray, up: np.ndarray | None = None) -> float:
     """The box's height from its 2D box where that box is the 3D box's projection (`outline`
-    "box") and cut neither at the top nor at the bottom; else the height it has."""
+    "box") and cut neither at the top nor at the bottom; else the height it has. `up`: the up axis
+    of the box the 2D box projects (`mono.box_up_of`; None: the camera's)."""
     if outline != "box" or bbox[1] <= 1.0 or bbox[3] >= image_height - 2.0:
         return float(dims[0])
     return height_from_top(np.asarray(T, dtype=np.float64), np.asarray(dims, dtype=np.float64),
-                           float(ry), float(bbox[1]), P)
+                           float(ry), float(bbox[1]), P,
+                           CAMERA_UP if up is None else np.asarray(up, dtype=np.float64))

@@ -16,7 +16,7 @@ import numpy as np
 from kitti.boxes import wrap_angle
 from kitti.calib import Calibration
 
-from .mono import contact_of, ground_point, solve_from_alpha
+from .mono import box_up_of, contact_of, ground_point, solve_from_alpha
 from .road import FixedRoad, LocalRoad, plane_under
 from .types import Box2D, Lifted, Prior
 
@@ -32,7 +32,8 @@ def lift_roadside(boxes: list[Box2D], priors: list[Prior], calib: Calibration,
         plane = plane_under(road, box.centre[0], box.bbox[3], calib.P(cam))
         try:
             sol = solve_from_alpha(dims, prior.alpha, box.bbox, calib, image_size, plane, cam,
-                                   contact=contact_of(box.type, outline))
+                                   contact=contact_of(box.type, outline),
+                                   box_up=box_up_of(outline, calib))
             out.append(Lifted(sol.location, sol.rotation_y, dims))
         except ValueError:  # cut by the border on three sides: the bottom-centre ray alone
             g = ground_point(box.centre[0], box.bbox[3], calib, plane, cam)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from hypothesis import example, given, settings
@@ -16,6 +18,7 @@ from kitti import (
     iou_2d,
     iou_3d,
     iou_bev,
+    lidar_upright_corners,
     points_in_boxes,
     project_boxes,
     rotation_y_from_alpha,
@@ -187,3 +190,31 @@ def test_iou_matches_shapely(boxes_a, boxes_b):
             vi = inter * dy
             ref3 = vi / (a[i, 3] * pa.area + b[j, 3] * pb.area - vi)
             assert i3[i, j] == pytest.approx(ref3, abs=1e-9)
+
+
+def test_lidar_upright_corners_stand_on_the_lidars_z_and_keep_the_box():
+    boxes = np.array([[2.0, 1.6, 15.0, 1.5, 1.6, 4.0, 0.4], [-4.0, 1.7, 30.0, 1.8, 0.7, 0.9, -2.2]])
+    got, own = lidar_upright_corners(boxes, KITTI), box_corners(boxes)
+    up = KITTI.lidar_to_rect(np.array([[0.0, 0.0, 1.0]])) - KITTI.lidar_to_rect(np.zeros((1, 3)))
+    for g, o, b in zip(got, own, boxes):
+        # the same bottom-face centre and the same edge lengths (a rigid turn of the label's box)
+        np.testing.assert_allclose(g[:4].mean(axis=0), b[:3], atol=1e-9)
+        edges = [(0, 1), (1, 2), (0, 4)]
+        np.testing.assert_allclose([np.linalg.norm(g[i] - g[j]) for i, j in edges],
+                                   [np.linalg.norm(o[i] - o[j]) for i, j in edges], atol=1e-9)
+        # its vertical edges run along the LiDAR's z, h long
+        np.testing.assert_allclose(g[4] - g[0], up[0] * b[3], atol=1e-9)
+        # the heading, seen from above in the LiDAR's frame, is the label's
+        base = KITTI.rect_to_lidar(b[None, :3])
+        front = KITTI.rect_to_lidar(g[[0, 1]].mean(axis=0, keepdims=True))  # the front face's foot
+        head = KITTI.rect_to_lidar(b[None, :3] + [[np.cos(b[6]), 0, -np.sin(b[6])]])
+        u, v = (front - base)[0, :2], (head - base)[0, :2]
+        assert u[0] * v[1] - u[1] * v[0] == pytest.approx(0.0, abs=1e-9) and u @ v > 0
+        # KITTI's calibration tilts the two boxes apart by centimetres, not more
+        assert 0.005 < np.abs(g - o).max() < 0.05
+    # a LiDAR whose axes are the camera's own (x ahead = z, y left = -x, z up = -y) changes nothing
+    aligned = replace(KITTI, R0_rect=np.eye(3),
+                      Tr_velo_to_cam=np.array([[0, -1, 0, 0.1], [0, 0, -1, -0.2], [1, 0, 0, 0.3]]))
+    np.testing.assert_allclose(lidar_upright_corners(boxes, aligned), own, atol=1e-12)
+    with pytest.raises(ValueError, match="upright"):
+        project_boxes(boxes, KITTI, (1242, 375), upright="world")

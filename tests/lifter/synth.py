@@ -61,7 +61,7 @@ def make_frame(boxes7, types=None, beams: int = 64, **kw) -> SynthFrame:
     pts, ids = scan(boxes7, calib, beams, **kw)
     lidar = calib.rect_to_lidar(pts)
     velo = np.concatenate([lidar, np.full((len(lidar), 1), 0.5)], axis=1).astype(np.float32)
-    bb = project_boxes(boxes7, calib, IMAGE_SIZE) if len(boxes7) else np.zeros((0, 4))
+    bb = project_boxes(boxes7, calib, IMAGE_SIZE, upright="lidar") if len(boxes7) else np.zeros((0, 4))
     objs = []
     for i, b in enumerate(boxes7):
         objs.append(Object3D((types or ["Car"] * len(boxes7))[i], 0.0, 0,

@@ -8,7 +8,7 @@ from kitti.boxes import box_corners, wrap_angle
 from kitti.iou import iou_2d
 from lifter.fit import lift_fit
 from lifter.ground import fit_ground_plane
-from lifter.mono import solve_from_alpha
+from lifter.mono import box_up_of, solve_from_alpha
 from lifter.placement import OUTLINE_FRONT, OUTLINE_REAR
 from lifter.points import frame_points
 from lifter.types import Box2D, Prior
@@ -38,14 +38,14 @@ def _scenes(n_frames, seed, max_z=30.0):
     return frames
 
 
-def _lift(fr, noise_deg, rng, plane=None):
+def _lift(fr, noise_deg, rng, plane=None, outline="silhouette"):
     rect = fr.calib.lidar_to_rect(fr.velodyne[:, :3].astype(float))
     plane = fit_ground_plane(rect) if plane is None else plane
     pts = frame_points(fr.velodyne, fr.calib, plane)
     boxes = [Box2D("Car", o.bbox, 1.0) for o in fr.objects]
     priors = [Prior(np.array([o.h, o.w, o.l]), o.alpha + np.deg2rad(rng.uniform(-noise_deg, noise_deg)))
               for o in fr.objects]
-    return lift_fit(boxes, priors, pts, fr.calib, IMAGE_SIZE, plane)
+    return lift_fit(boxes, priors, pts, fr.calib, IMAGE_SIZE, plane, outline=outline)
 
 
 def test_fit_recovers_centre_and_yaw_on_64_beams_under_30m():
@@ -112,10 +112,12 @@ def test_ground_plane_from_the_scan():
 def test_no_returns_falls_back_to_image_only_on_the_road():
     boxes, fr = _scenes(1, seed=4)[0]
     fr.velodyne = fr.velodyne[fr.hit_id < 0]  # the road alone
-    out = _lift(fr, 0.0, np.random.default_rng(0), plane=PLANE)
+    out = _lift(fr, 0.0, np.random.default_rng(0), plane=PLANE, outline="box")
     assert len(out) == len(boxes) == len(fr.objects) == 3
+    up = box_up_of("box", fr.calib)  # the synthetic labels' 2D boxes are KITTI's
     for o, b, lf in zip(fr.objects, boxes, out):
-        sol = solve_from_alpha(np.array([o.h, o.w, o.l]), o.alpha, o.bbox, fr.calib, IMAGE_SIZE, PLANE)
+        sol = solve_from_alpha(np.array([o.h, o.w, o.l]), o.alpha, o.bbox, fr.calib, IMAGE_SIZE, PLANE,
+                               box_up=up)
         np.testing.assert_allclose(lf.location, sol.location)
         np.testing.assert_allclose(lf.location, b[:3], atol=1e-3)
         d = np.hypot(b[0], b[2])  # the image's depth: trusted less with distance, as mono's
@@ -141,3 +143,8 @@ def test_height_from_the_projected_top_edge_is_exact(box7):
         assert height_from_top(b[:3], dims, b[6], top, calib.P(2)) == pytest.approx(b[3], abs=1e-9)
     dims[0] = b[3] * 0.4  # the top edge would need 2.5 x the fitted height: kept as it was
     assert height_from_top(b[:3], dims, b[6], top, calib.P(2)) == dims[0]
+    # KITTI's 2D box projects the box upright in the LiDAR's frame: with that up, exact again
+    up = box_up_of("box", calib)
+    top = project_boxes(b[None], calib, IMAGE_SIZE, upright="lidar")[0][1]
+    dims[0] = b[3]
+    assert height_from_top(b[:3], dims, b[6], top, calib.P(2), up) == pytest.approx(b[3], abs=1e-5)

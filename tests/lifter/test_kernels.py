@@ -310,21 +310,31 @@ def test_outline_is_reused_only_for_the_same_box_and_road():
 
 
 def test_height_from_top_matches_numpy():
-    from lifter.placement import HEIGHT_RANGE, height_from_top
+    """The kernel against the corners `mono.standing_corners` stands on the same up: the least
+    height at which a top corner reaches the row, for the camera's up (the closed form it had
+    before, y = max_i y_i) and for ups tilted a few degrees."""
+    from lifter.mono import standing_corners
+    from lifter.placement import CAMERA_UP, HEIGHT_RANGE, height_from_top
     rng = np.random.default_rng(11)
-    for _ in range(200):
+    for i in range(200):
         T = np.array([rng.uniform(-10, 10), rng.uniform(1.4, 1.9), rng.uniform(5, 60)])
         dims, ry = rng.uniform([1.3, 1.5, 3.5], [1.8, 2.0, 5.0]), rng.uniform(-np.pi, np.pi)
         top = rng.uniform(100, 200)
-        h, w, l = dims
-        c, s = np.cos(ry), np.sin(ry)
-        corners = np.array([[l / 2, w / 2], [l / 2, -w / 2], [-l / 2, w / 2], [-l / 2, -w / 2]])
-        x = T[0] + corners[:, 0] * c + corners[:, 1] * s
-        z = T[2] - corners[:, 0] * s + corners[:, 1] * c
-        num = top * (P[2, 0] * x + P[2, 2] * z + P[2, 3]) - (P[1, 0] * x + P[1, 2] * z + P[1, 3])
-        h_ref = T[1] - float(np.max(num / (P[1, 1] - top * P[2, 1])))
+        h = dims[0]
+        up = CAMERA_UP if i % 2 else CAMERA_UP + np.r_[rng.normal(0, 0.05, 1), 0.0, rng.normal(0, 0.05, 1)]
+        up = up / np.linalg.norm(up)
+        feet = T + standing_corners(1.0, dims[1], dims[2], ry, None if i % 2 else up)[:4]
+        r = P[1] - top * P[2]
+        h_ref = float(np.min(-(feet @ r[:3] + r[3]) / (r[:3] @ up)))
+        if i % 2:  # the camera's up: the closed form in y
+            c, s = np.cos(ry), np.sin(ry)
+            xz = np.array([[dims[2] / 2, dims[1] / 2], [dims[2] / 2, -dims[1] / 2],
+                           [-dims[2] / 2, dims[1] / 2], [-dims[2] / 2, -dims[1] / 2]])
+            x, z = T[0] + xz[:, 0] * c + xz[:, 1] * s, T[2] - xz[:, 0] * s + xz[:, 1] * c
+            num = top * (P[2, 0] * x + P[2, 2] * z + P[2, 3]) - (P[1, 0] * x + P[1, 2] * z + P[1, 3])
+            assert h_ref == pytest.approx(T[1] - float(np.max(num / (P[1, 1] - top * P[2, 1]))), abs=1e-9)
         h_ref = h_ref if HEIGHT_RANGE[0] * h <= h_ref <= HEIGHT_RANGE[1] * h else h
-        assert height_from_top(T, dims, ry, top, P) == h_ref
+        assert height_from_top(T, dims, ry, top, P, up) == pytest.approx(h_ref, abs=1e-9)
 
 
 # --- ground and road ------------------------------------------------------------------------

@@ -210,7 +210,11 @@ def test_a_tilted_car_is_labelled_by_its_upright_box_on_the_road(tilt):
     x, y, z = (world_from_rect @ np.append(row.box7[:3], 1.0))[:3]
     assert z == pytest.approx(float(road.height(x, y)), abs=1e-9)
     size = (rig.width, rig.height)
-    np.testing.assert_allclose(row.bbox, project_boxes(row.box7[None], rig.calib, size)[0], atol=1e-6)
+    # KITTI's 2D box: the box upright in the LiDAR's frame; from the label alone to 0.05 px (the
+    # heading's climb leaves the LiDAR's and the camera's horizontal planes at slightly different
+    # yaws, a second-order difference)
+    np.testing.assert_allclose(row.bbox, project_boxes(row.box7[None], rig.calib, size, upright="lidar")[0],
+                               atol=0.05)
 
 
 def test_a_draped_wall_wears_one_continuous_facade():
