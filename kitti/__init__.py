@@ -19,7 +19,7 @@ from .velodyne import read_velodyne, write_velodyne
 __all__ = [
     "Calibration", "KittiDataset", "KittiFormatError", "Object3D", "alpha_from_rotation_y",
     "box_corners", "boxes7", "iou_2d", "iou_3d", "iou_bev", "lidar_upright_corners",
-    "points_in_boxes", "project_boxes", "read_calib", "read_label", "read_plane", "read_split", "read_velodyne",
-    "rotation_y_from_alpha", "write_calib", "write_label", "write_plane", "write_split",
-    "write_velodyne",
+    "points_in_boxes", "project_boxes", "read_calib", "read_label", "read_plane", "read_split",
+    "read_velodyne", "rotation_y_from_alpha", "write_calib", "write_label", "write_plane",
+    "write_split", "write_velodyne",
 ]

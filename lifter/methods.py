@@ -22,8 +22,9 @@ FLAT_ROAD = (0.0, -1.0, 0.0, 1.65)  # without planes/ or a scan: the road 1.65 m
                                    # level (KITTI's rig, Geiger et al. 2013, and the testbed's)
 # How a 2D box outlines its object: "silhouette" (the generator's labels until it took up KITTI's
 # convention, and a detector trained on them: the lowest point is where the nearest tyre meets the
-# road) or "box" (KITTI's labels: the projection of the labelled 3D box, whose lowest point is a
-# bottom corner). `lifter.pipeline.box_outline` reads it from the labels.
+# road) or "box" (KITTI's labels: the projection of the labelled 3D box stood upright in the LiDAR's
+# frame, whose lowest point is a bottom corner; `mono.box_up_of`). `lifter.pipeline.box_outline`
+# reads it from the labels.
 OUTLINES = ("silhouette", "box")
 
 

@@ -47,8 +47,8 @@ CONTACT = {"Car": (0.64, 0.92), "Van": (0.64, 0.92), "Truck": (0.64, 0.92)}
 def contact_of(cls: str, outline: str = "silhouette") -> tuple[float, float]:
     """Where the lowest point of a 2D box touches the road, as a share of (l, w). A silhouette's
     lowest point is a tyre's contact; a 2D box that is the projection of a 3D box (KITTI's labels:
-    their sides lie within 0.5-1.7 px of the labelled box's projection on the dev frames) is
-    bounded below by a bottom corner of that box."""
+    the labelled box stood upright in the LiDAR's frame, `box_up_of`) is bounded below by a bottom
+    corner of that box."""
     return CONTACT.get(cls, (1.0, 1.0)) if outline == "silhouette" else (1.0, 1.0)
 
 

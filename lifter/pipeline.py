@@ -66,8 +66,8 @@ def box_outline(data: str | Path, detections: Path | None, ids: list[str] | None
     the LiDAR's frame (`kitti.boxes.lidar_upright_corners`; on the real dev frames the vehicles'
     sides lie a median 0.2 px from it); the generator wrote the rendered silhouette until it took
     up KITTI's convention (its bottom 2.4-2.7 % of the box's height above the projected one: the
-    lowest point is a tyre's contact, not the box's bottom corner). The median of that share
-    over the dataset's first untruncated vehicles decides, at OUTLINE_GAP. Detections outline what the
+    lowest point is a tyre's contact, not the box's bottom corner). The median of that share over
+    the dataset's first untruncated vehicles decides, at OUTLINE_GAP. Detections outline what the
     detector was trained on: KITTI's boxes for a detector trained on KITTI, and the generator's
     since it took up KITTI's convention, on which the shipped FlexiNet (stage 7,
     `detector/weights/README.md`) was trained."""

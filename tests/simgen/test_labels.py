@@ -191,8 +191,8 @@ def test_user_mesh_actor_is_labelled_from_its_own_geometry(tmp_path):
     assert row.type == "Misc" and (row.h, row.w, row.l) == pytest.approx((2.0, 1.0, 4.0))
     np.testing.assert_allclose(t.silhouette_bbox, mask_box(out.instance, 1), atol=1.0)
     size = (world.rig.width, world.rig.height)
-    np.testing.assert_allclose(row.bbox, project_boxes(row.box7[None], world.rig.calib, size, upright="lidar")[0],
-                               atol=1e-6)
+    kitti_box = project_boxes(row.box7[None], world.rig.calib, size, upright="lidar")[0]
+    np.testing.assert_allclose(row.bbox, kitti_box, atol=1e-6)
     assert t.visible_share > 0.95 and row.occluded == 0
 
 
