@@ -22,8 +22,8 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from kitti.boxes import project_boxes
 from kitti.dataset import KittiDataset
+from testbed.fidelity.labels import box_projections
 
 CLASSES = ("Car", "Van", "Truck", "Pedestrian", "Cyclist")
 
@@ -32,18 +32,11 @@ def sides(root: Path) -> dict[str, np.ndarray]:
     """Per class, rows of (largest side gap to the camera projection px, the same to the LiDAR
     projection px, width over the LiDAR projection's width, bottom minus the camera projection's
     bottom px) of every untruncated label."""
-    ds = KittiDataset(root)
     rows: dict[str, list] = {c: [] for c in CLASSES}
-    for fid in tqdm(ds.ids(), desc=f"{root}", leave=False):
-        objs = [o for o in ds.labels(fid) if o.type in CLASSES and o.truncated == 0]
-        if not objs:
-            continue
-        b7, calib, size = np.stack([o.box7 for o in objs]), ds.calib(fid), ds.image_size(fid)
-        cam, lid = project_boxes(b7, calib, size), project_boxes(b7, calib, size, upright="lidar")
-        for o, pc, pl in zip(objs, cam, lid):
-            bb = np.asarray(o.bbox)
-            rows[o.type].append((np.abs(bb - pc).max(), np.abs(bb - pl).max(),
-                                 (bb[2] - bb[0]) / (pl[2] - pl[0]), bb[3] - pc[3]))
+    for o, pc, pl in tqdm(box_projections(KittiDataset(root), CLASSES), desc=f"{root}", leave=False):
+        bb = np.asarray(o.bbox)
+        rows[o.type].append((np.abs(bb - pc).max(), np.abs(bb - pl).max(),
+                             (bb[2] - bb[0]) / (pl[2] - pl[0]), bb[3] - pc[3]))
     return {c: np.array(r, dtype=float).reshape(-1, 4) for c, r in rows.items()}
 
 

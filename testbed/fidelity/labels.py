@@ -3,10 +3,13 @@ whether each 2D box agrees with its own 3D box (real KITTI dev frames: 0.84 px m
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 import numpy as np
 
 from kitti.boxes import project_boxes
 from kitti.calib import Calibration
+from kitti.dataset import KittiDataset
 from kitti.labels import Object3D, boxes7
 
 from .stats import Acc
@@ -52,3 +55,17 @@ def projection_gaps(objs: list[Object3D], calib: Calibration, size: tuple[int, i
     proj = project_boxes(boxes7(boxed), calib, size)
     gap = np.abs(proj - np.array([o.bbox for o in boxed])).max(axis=1)
     return gap[np.isfinite(gap)]
+
+
+def box_projections(ds: KittiDataset, classes: tuple[str, ...]
+                    ) -> Iterator[tuple[Object3D, np.ndarray, np.ndarray]]:
+    """Each untruncated label of `classes` in the dataset with the two projections of its 3D box:
+    the label box's own and the box stood upright in the LiDAR's frame, which is how KITTI's 2D
+    boxes were made (`kitti.boxes.lidar_upright_corners`)."""
+    for fid in ds.ids():
+        objs = [o for o in ds.labels(fid) if o.type in classes and o.truncated == 0]
+        if not objs:
+            continue
+        b7, calib, size = boxes7(objs), ds.calib(fid), ds.image_size(fid)
+        own, lidar = project_boxes(b7, calib, size), project_boxes(b7, calib, size, upright="lidar")
+        yield from zip(objs, own, lidar)

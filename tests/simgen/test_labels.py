@@ -17,6 +17,7 @@ from simgen.render import render
 from simgen.rigs import onboard_rig
 from simgen.spec import LabelRules
 from simgen.world import Actor, Light, Weather, World
+from testbed.fidelity.labels import box_projections
 
 CAR = {"kind": "car", "dims": [1.53, 1.63, 3.88], "color": [0.55, 0.04, 0.03], "seed": 7}
 
@@ -239,21 +240,13 @@ def test_real_kitti_2d_boxes_are_the_lidar_upright_projection_except_pedestrians
     2D boxes lie within 1.1 px of their 3D boxes stood upright in the LiDAR's frame, nearer than
     to the label boxes' own projection in 39 of 40 cases; pedestrians' are narrower than either
     projection, their tops and bottoms within 1 px of it."""
-    ds = KittiDataset(REAL)
     ped, other = [], []
-    for fid in ds.ids():
-        objs = [o for o in ds.labels(fid) if o.truncated == 0
-                and o.type in ("Pedestrian", "Car", "Van", "Truck", "Cyclist")]
-        if not objs:
-            continue
-        b7, calib, size = np.stack([o.box7 for o in objs]), ds.calib(fid), ds.image_size(fid)
-        own, lid = project_boxes(b7, calib, size), project_boxes(b7, calib, size, upright="lidar")
-        for o, pc, pl in zip(objs, own, lid):
-            bb = np.asarray(o.bbox)
-            if o.type == "Pedestrian":
-                ped.append(((bb[2] - bb[0]) / (pl[2] - pl[0]), *np.abs(bb - pl)[[1, 3]]))
-            else:
-                other.append((np.abs(bb - pc).max(), np.abs(bb - pl).max()))
+    for o, pc, pl in box_projections(KittiDataset(REAL), ("Pedestrian", "Car", "Van", "Truck", "Cyclist")):
+        bb = np.asarray(o.bbox)
+        if o.type == "Pedestrian":
+            ped.append(((bb[2] - bb[0]) / (pl[2] - pl[0]), *np.abs(bb - pl)[[1, 3]]))
+        else:
+            other.append((np.abs(bb - pc).max(), np.abs(bb - pl).max()))
     ped, other = np.array(ped), np.array(other)
     assert len(ped) == 3 and len(other) == 40
     assert np.all(ped[:, 0] < 0.9) and np.all(ped[:, 1:] < 1.0)
