@@ -17,6 +17,8 @@ import numpy as np
 
 from kitti.boxes import UNIT_CORNERS as _UNIT  # numba freezes it as a constant
 
+from .mono import _standing
+
 SIGMA_FACE = 0.05      # m, weight of a face row
 SIGMA_IMAGE = 0.15     # m at the object, weight of a 2D-side row (mesh silhouette vs box)
 SIGMA_CENTROID = 3.0   # m, weak pull to the returns' centroid
@@ -323,26 +325,18 @@ def height_from_top(T: np.ndarray, dims: np.ndarray, ry: float, top: float, P: n
     A 2D box that is the projection of the 3D box (KITTI's labels, `outline` "box") has its top
     at the highest-projecting of the four top corners. The box stands on its bottom centre T along
     `up` (rect frame, unit: CAMERA_UP for the label's own box, the LiDAR's z for KITTI's 2D boxes,
-    `mono.box_up_of`), its footprint square to it with the heading (cos ry, -sin ry) seen from
-    above (as `mono.standing_corners`). With the footprint fixed, each top corner B_k + h up
-    reaches row `top` at one height h_k (P's row equation, linear in h), and the projected top
-    reaches it at the least of them. Kept only within HEIGHT_RANGE x the current height (a 2D box
+    `mono.box_up_of`), its footprint that of `mono.standing_corners` on that up. With the
+    footprint fixed, each top corner B_k + h up reaches row `top` at one height h_k (P's row
+    equation, linear in h), and the projected top reaches it at the least of them. Kept only within HEIGHT_RANGE x the current height (a 2D box
     cut at the top, or an object bigger than its box, says nothing about the height). A kernel:
     numpy spent forty microseconds a box on four corners."""
-    h, w, l = dims[0], dims[1], dims[2]
-    c, s = np.cos(ry), np.sin(ry)
-    head = np.array([c, (up[2] * -s + up[0] * c) / -up[1], -s])  # in the footprint: up . head = 0
-    head /= np.sqrt(head[0] * head[0] + head[1] * head[1] + head[2] * head[2])
-    side = np.array([up[1] * head[2] - up[2] * head[1], up[2] * head[0] - up[0] * head[2],
-                     up[0] * head[1] - up[1] * head[0]])  # up x head
+    h = dims[0]
+    feet = _standing(1.0, dims[1], dims[2], ry, up)[:4] + T  # the bottom corners
     r = P[1] - top * P[2]
     rise = r[0] * up[0] + r[1] * up[1] + r[2] * up[2]
     h_new = np.inf
     for k in range(4):
-        a = l / 2 if k < 2 else -l / 2
-        b = w / 2 if k % 2 == 0 else -w / 2
-        foot = T + a * head + b * side
-        h_new = min(h_new, -(r[0] * foot[0] + r[1] * foot[1] + r[2] * foot[2] + r[3]) / rise)
+        h_new = min(h_new, -(r[0] * feet[k, 0] + r[1] * feet[k, 1] + r[2] * feet[k, 2] + r[3]) / rise)
     return h_new if HEIGHT_RANGE[0] * h <= h_new <= HEIGHT_RANGE[1] * h else h
 
 
