@@ -1,12 +1,13 @@
-"""A dataset derived from another with a new LiDAR (a rescan, fewer rings): links, provenance,
-and the generator's side files that follow the sensor.
+"""A dataset derived from another with a new LiDAR (a rescan, fewer rings) or new labels (a
+relabel): links, provenance, and the generator's side files that follow the change.
 
-The derived root is a complete KITTI-format dataset: every file of the source except velodyne/,
-velodyne_info/ and meta/ is hard-linked (copied where links are impossible), so images, labels,
-calib, planes, splits and the depth/instance side data stay byte-identical. `lidar.json` at the
-root records what was asked; a second run into the same root must ask for the same thing. A
-generated dataset also carries the generator's manifest (`simgen.json`) and per-frame meta/: their
-"lidar" entries are rewritten to the new sensor, so neither lies about the scans beside it.
+The derived root is a complete KITTI-format dataset: every file of the source except the folders
+the derivation rewrites (velodyne/, velodyne_info/ and meta/ for a new LiDAR; label_2/ and meta/
+for new labels) is hard-linked (copied where links are impossible), so everything else stays
+byte-identical. A provenance file at the root (`lidar.json`, `labels.json`) records what was
+asked; a second run into the same root must ask for the same thing. A generated dataset also
+carries the generator's manifest (`simgen.json`) and per-frame meta/: their "lidar" entries (or
+their label rules) are rewritten, so neither lies about the files beside it.
 """
 
 from __future__ import annotations
@@ -20,8 +21,10 @@ from .io import atomic_write_text
 from .velodyne_info import INFO_DIR
 
 PARTS = ("training", "testing")
-NEW_DIRS = ("velodyne", INFO_DIR, "meta")  # rewritten per frame, never linked
+NEW_DIRS = ("velodyne", INFO_DIR, "meta")  # rewritten per frame by a new LiDAR, never linked
+LABEL_DIRS = ("label_2", "meta")  # rewritten per frame by new labels
 PROVENANCE = "lidar.json"
+LABEL_PROVENANCE = "labels.json"
 MANIFEST = "simgen.json"  # the generator's manifest (written by simgen.generate)
 
 
@@ -57,26 +60,26 @@ def _link_or_copy(src: Path, dst: Path) -> None:
         os.replace(tmp, dst)
 
 
-def mirror_dataset(src: Path, dst: Path) -> None:
-    """Link every source file into dst except the LiDAR and meta folders of each part."""
+def mirror_dataset(src: Path, dst: Path, new_dirs: tuple[str, ...] = NEW_DIRS) -> None:
+    """Link every source file into dst except the folders `new_dirs` of each part."""
     if src.resolve() == dst.resolve():
         raise ValueError(f"--out {dst} is the source dataset itself; choose a new directory")
     for path in sorted(src.rglob("*")):
         rel = path.relative_to(src)
-        if not path.is_file() or rel.name in (PROVENANCE, MANIFEST) \
+        if not path.is_file() or rel.name in (PROVENANCE, LABEL_PROVENANCE, MANIFEST) \
                 or any(part.startswith(".") for part in rel.parts):
             continue  # hidden files are stage markers (.done) or half-written temporaries
-        if len(rel.parts) >= 3 and rel.parts[0] in PARTS and rel.parts[1] in NEW_DIRS:
+        if len(rel.parts) >= 3 and rel.parts[0] in PARTS and rel.parts[1] in new_dirs:
             continue
         _link_or_copy(path, dst / rel)
 
 
-def claim_output(src: Path, dst: Path, request: dict) -> None:
-    """Write dst/lidar.json, or check that an earlier run there asked for the same thing.
+def claim_output(src: Path, dst: Path, request: dict, provenance: str = PROVENANCE) -> None:
+    """Write dst's provenance file, or check that an earlier run there asked for the same thing.
 
     The source is recorded relative to dst, so the same request gives the same bytes wherever the
     two datasets live (a sweep on another backend or machine writes identical files)."""
-    path = dst / PROVENANCE
+    path = dst / provenance
     dst.mkdir(parents=True, exist_ok=True)
     record = {"source": os.path.relpath(src.resolve(), dst.resolve()), **request}
     if path.exists():
@@ -92,6 +95,8 @@ def claim_output(src: Path, dst: Path, request: dict) -> None:
         m = json.loads(manifest.read_text())
         if request["command"] == "rescan":
             m["lidar"] = request["lidar"]
+        elif request["command"] == "relabel":
+            m["spec"] = {**m["spec"], "labels": request["labels"]}
         elif isinstance(m.get("lidar"), dict):
             m["lidar"] = {**m["lidar"], "beams": request["beams"]}
         atomic_write_text(dst / MANIFEST, dump_json(m))

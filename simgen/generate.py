@@ -101,7 +101,6 @@ def make_frame(job: Job) -> str:
     look_rng = factor_rng(job.seed, job.index, "look")
     image = apply_look(out.color, out.depth, rig.intrinsics(), world.weather, world.light,
                        world.sensor, look_rng, out.headroom, world.camera)
-    objects, truths = derive(world, out.instance, job.spec.labels)
     counts = None
     lidar_info = None
     if section is not None:
@@ -111,6 +110,7 @@ def make_frame(job: Job) -> str:
         lidar.write_scan(training, fid, scan)
         counts = scan.point_counts()
         lidar_info = section.model_dump()
+    objects, truths = derive(world, out.instance, job.spec.labels, counts)
     atomic_write_bytes(training / "image_2" / f"{fid}.png", _png(image[..., ::-1]))
     atomic_write_bytes(training / "depth_2" / f"{fid}.png", _png(encode_depth(out.depth)))
     atomic_write_bytes(training / "instance_2" / f"{fid}.png", _png(out.instance))
@@ -151,6 +151,8 @@ def generate(spec: SceneSpec, out: str | Path, frames: int | None = None, seed: 
     seed = spec.seed if seed is None else seed
     if spec.lidar is not None:
         _lidar_api()  # fail before any work if the LiDAR code is missing
+    elif spec.labels.min_lidar_points:
+        raise ValueError("labels.min_lidar_points counts LiDAR returns: the spec needs a lidar")
     _check_manifest(root, {"spec": spec_to_dict(spec), "seed": seed,
                            "lidar": None if spec.lidar is None else spec.lidar.model_dump()})
     jobs = [Job(spec, seed, i, root) for i in range(n)]

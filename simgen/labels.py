@@ -26,8 +26,9 @@ Per actor:
   camera-0 coordinates; rotation_y from its heading in that frame (heading (cos ry, 0, -sin ry));
   alpha from rotation_y and the location via kitti.boxes.
 An actor in view with no visible pixel gets no row. One whose 2D box is lower than
-`min_height_px`, whose distance (x-z plane, from camera 0) exceeds `max_distance`, or whose
-visible share is below `min_visible_share` gets a DontCare row with its 2D box.
+`min_height_px`, whose distance (x-z plane, from camera 0) exceeds `max_distance`, whose
+visible share is below `min_visible_share`, or with fewer than `min_lidar_points` LiDAR returns
+on it gets a DontCare row with its 2D box.
 """
 
 from __future__ import annotations
@@ -181,8 +182,12 @@ def _clipped_bounds(outline: shapely.Geometry, image: shapely.Geometry, W: int,
     return np.array([max(x1, 0.0), max(y1, 0.0), min(x2, W - 1.0), min(y2, H - 1.0)])
 
 
-def derive(world: World, instance: np.ndarray, rules: LabelRules) -> tuple[list[Object3D], list[ActorTruth]]:
-    """Label rows (objects first, DontCare after) and the per-actor truth of one frame."""
+def derive(world: World, instance: np.ndarray, rules: LabelRules,
+           lidar_points: dict[int, int] | None = None) -> tuple[list[Object3D], list[ActorTruth]]:
+    """Label rows (objects first, DontCare after) and the per-actor truth of one frame;
+    `lidar_points` (returns per actor id) is needed when the rules count them."""
+    if rules.min_lidar_points and lidar_points is None:
+        raise ValueError("labels.min_lidar_points counts LiDAR returns: this frame has no scan")
     rig = world.rig
     W, H = rig.width, rig.height
     image = shapely.box(-0.5, -0.5, W - 0.5, H - 0.5)
@@ -224,7 +229,8 @@ def derive(world: World, instance: np.ndarray, rules: LabelRules) -> tuple[list[
         if vis_px == 0:
             t.label = "hidden"
         elif (bbox[3] - bbox[1] < rules.min_height_px or dist > rules.max_distance
-              or share < rules.min_visible_share):
+              or share < rules.min_visible_share
+              or (rules.min_lidar_points and lidar_points.get(actor.id, 0) < rules.min_lidar_points)):
             t.label = "dontcare"
             dontcare.append(Object3D.dont_care(bbox))
         else:

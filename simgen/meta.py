@@ -34,6 +34,24 @@ def _rig_from_json(d: dict) -> CameraRig:
                      d["params"])
 
 
+def _truth_fields(t: ActorTruth) -> dict:
+    return {"box7": t.box7.tolist(), "in_view": t.in_view,
+            "bbox": None if t.bbox is None else t.bbox.tolist(),
+            "silhouette_bbox": None if t.silhouette_bbox is None else t.silhouette_bbox.tolist(),
+            "truncation": t.truncation, "visible_px": t.visible_px,
+            "visible_share": t.visible_share, "occluded": t.occluded,
+            "distance": t.distance, "label": t.label}
+
+
+def meta_with_truths(meta: dict, truths: list[ActorTruth], labels: dict) -> dict:
+    """A frame's meta relabelled: the label rules `labels` (as spec_to_dict writes them) in its
+    spec and the labeller's new per-actor truth; the world and the sensor as they were."""
+    by_id = {t.id: t for t in truths}
+    actors = [dict(a, **_truth_fields(by_id[a["id"]])) if a["id"] in by_id else dict(a)
+              for a in meta["actors"]]
+    return dict(meta, spec=dict(meta["spec"], labels=labels), actors=actors)
+
+
 def world_to_meta(world: World, spec: dict | None = None, truths: list[ActorTruth] | None = None,
                   lidar_counts: dict[int, int] | None = None, lidar: dict | None = None) -> dict:
     """A JSON-able dict of the world, its spec and (when given) the labeller's per-actor truth."""
@@ -46,13 +64,7 @@ def world_to_meta(world: World, spec: dict | None = None, truths: list[ActorTrut
             row["stop_lamps"] = True
         t = by_id.get(a.id)
         if t is not None:
-            row.update({"box7": t.box7.tolist(), "in_view": t.in_view,
-                        "bbox": None if t.bbox is None else t.bbox.tolist(),
-                        "silhouette_bbox": (None if t.silhouette_bbox is None
-                                            else t.silhouette_bbox.tolist()),
-                        "truncation": t.truncation, "visible_px": t.visible_px,
-                        "visible_share": t.visible_share, "occluded": t.occluded,
-                        "distance": t.distance, "label": t.label})
+            row.update(_truth_fields(t))
         if lidar_counts is not None:
             row["lidar_points"] = int(lidar_counts.get(a.id, 0))
         actors.append(row)

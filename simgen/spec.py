@@ -230,6 +230,11 @@ class LabelRules(Strict):
     # pedestrian badly, so its left/right boundaries were labelled again in the image (Mechanical
     # Turk); every other class's 2D box is the projection.
     silhouette_sides: tuple[ActorClass, ...] = ("Pedestrian",)
+    # An object with fewer LiDAR returns on it than this gets a DontCare row (0: no such rule;
+    # needs a LiDAR). KITTI's annotators drew their boxes in the Velodyne point clouds, and its
+    # devkit says its DontCare regions are objects left unlabelled "because they have been too
+    # far away from the laser scanner".
+    min_lidar_points: int = Field(0, ge=0)
 
     @model_validator(mode="after")
     def _order(self) -> "LabelRules":
@@ -287,6 +292,12 @@ class SceneSpec(Strict):
     @classmethod
     def _lidar_none(cls, v: Any) -> Any:
         return None if v in ("none", "None", False) else v
+
+    @model_validator(mode="after")
+    def _labels_need_lidar(self) -> "SceneSpec":
+        if self.labels.min_lidar_points and self.lidar is None:
+            raise ValueError("labels.min_lidar_points counts LiDAR returns: the spec needs a lidar")
+        return self
 
 
 def _format_errors(err: ValidationError, path: Path) -> str:

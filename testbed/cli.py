@@ -13,7 +13,8 @@ import importlib
 import click
 
 COMMANDS = {  # name -> module defining a click command of the same name (dashes as underscores)
-    "generate": "cmd_generate", "rescan": "cmd_rescan", "reduce-beams": "cmd_reduce_beams",
+    "generate": "cmd_generate", "rescan": "cmd_rescan", "relabel": "cmd_relabel",
+    "reduce-beams": "cmd_reduce_beams",
     "detect": "cmd_detect", "train-detector": "cmd_train_detector", "lift": "cmd_lift",
     "train-lifter": "cmd_train_lifter", "evaluate": "cmd_evaluate", "run": "cmd_run",
     "sweep": "cmd_sweep", "show": "cmd_show", "fidelity": "cmd_fidelity",
