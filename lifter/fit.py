@@ -42,6 +42,7 @@ Step 2 is `clusters.object_returns`, steps 4-5 are `placement`'s kernels.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import NamedTuple
 
 import numba
@@ -53,6 +54,7 @@ from kitti.calib import Calibration
 from .clusters import MIN_POINTS, object_returns
 from .mono import box_up_of, contact_of, solve_from_alpha, wrap_one
 from .placement import (
+    CAMERA_UP,
     FOCAL_PX,
     MAX_GROW_L,
     MAX_GROW_W,
@@ -170,6 +172,13 @@ class _View:
     def P(self) -> np.ndarray:
         return self.calib.P(self.cam)
 
+    @cached_property
+    def up(self) -> np.ndarray:
+        """The up axis of the box whose projection a 2D box is (`mono.box_up_of`): the LiDAR's z
+        for KITTI's 2D boxes, the camera's for a silhouette's."""
+        up = box_up_of(self.outline, self.calib)
+        return CAMERA_UP if up is None else up
+
 
 class _Placed(NamedTuple):
     """One yaw hypothesis placed: its yaw, bottom centre, size, the faces its returns pin and its
@@ -212,7 +221,7 @@ def _box_for_yaw(ry: float, obj: _Returns, prior: Prior, small: bool, box: Box2D
     h, w, l = (float(v) for v in prior.dims)
     T, dims, pinned, misfit, length_cost = _size_and_place(
         obj.xz, obj.u, obj.height, h, w, l, ry, small, box.type == "Car", box.bbox,
-        view.sensor_xz, obj.centroid, view.P, view.image_size[0], plane)
+        view.sensor_xz, obj.centroid, view.P, view.image_size[0], plane, view.up)
     return T, dims, pinned, misfit / SIGMA_SIDE_PX ** 2 + length_cost
 
 
@@ -220,7 +229,7 @@ def _box_for_yaw(ry: float, obj: _Returns, prior: Prior, small: bool, box: Box2D
 def _size_and_place(xz: np.ndarray, u: np.ndarray, height: np.ndarray, h: float, w: float,
                     l: float, ry: float, small: bool, car: bool, bbox: np.ndarray,
                     sensor_xz: np.ndarray, centroid: np.ndarray, P: np.ndarray, width: int,
-                    plane: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, float, float]:
+                    plane: np.ndarray, up: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, float, float]:
     """The prior size (h, w, l) grown to hold the returns and brought to the roof, the faces, 2D
     sides and road fixing the centre (a `car`'s faces above its bumpers set in), and an unmeasured
     length chosen with the 2D box: the bottom centre, the size, the pinned count, the box's misfit
@@ -238,14 +247,14 @@ def _size_and_place(xz: np.ndarray, u: np.ndarray, height: np.ndarray, h: float,
     if top > ROOF_SEEN * h:  # the roof is hit: the top lies at most ROOF_GAP above its returns
         h = min(max(h, top), top + ROOF_GAP)
     T, dims, pinned, slide = translation(xz, u, height, h, w, l, ry, bbox, sensor_xz, centroid, P,
-                                         width, plane, car)
+                                         width, plane, car, up)
     length_cost = 0.0
     if not small and slide.any():  # length not measured: let the 2D box's width choose it
         T, dims[2] = length_from_sides(T, dims[0], dims[1], dims[2], ry, slide, bbox, P, width,
-                                       plane)
+                                       plane, up)
         length_cost = ((dims[2] - l) / SIGMA_LENGTH) ** 2
     box7 = np.array([[T[0], T[1], T[2], dims[0], dims[1], dims[2], ry]])
-    return T, dims, pinned, side_misfit(box7, P, bbox, width)[0], length_cost
+    return T, dims, pinned, side_misfit(box7, P, bbox, width, up)[0], length_cost
 
 
 def lift_fit(boxes: list[Box2D], priors: list[Prior], pts: FramePoints, calib: Calibration,
@@ -337,7 +346,7 @@ def _fit_box(box: Box2D, prior: Prior, cand: np.ndarray, height: np.ndarray, pts
     ry, T, dims, pinned, cost = _best_yaw(obj, prior, ry_prior, small, box, view, plane)
     dims = dims.copy()
     dims[0] = height_from_box(T, dims, ry, box.bbox, view.outline, view.image_size[1], view.P,
-                              box_up_of(view.outline, view.calib))
+                              view.up)
     h, w, l = dims
     # claim this object's returns so a farther box does not take them as its own
     grown = np.array([T[0], T[1] + CLAIM_MARGIN, T[2], h + 2 * CLAIM_MARGIN,

@@ -7,15 +7,15 @@ Numba kernels: the arithmetic is a few dozen operations on 2-vectors and a pass 
 returns, which numpy would spend in call overhead (it was two thirds of `fit`'s time). Arrays in
 the rectified camera frame; bird's-eye vectors are (x, z); a yaw ry has heading (cos ry, -sin ry)
 and lateral (sin ry, cos ry) there; P is the (3, 4) projection, plane (a, b, c, d) the unit-normal
-road plane.
+road plane; `up` the up axis of the box whose projection the 2D box is (CAMERA_UP for the label's
+own box, the LiDAR's z for KITTI's 2D boxes: `mono.box_up_of`), whose corners the 2D sides are
+compared with (`mono.standing_corners` on that up; the bottom centre stays on the road plane).
 """
 
 from __future__ import annotations
 
 import numba
 import numpy as np
-
-from kitti.boxes import UNIT_CORNERS as _UNIT  # numba freezes it as a constant
 
 from .mono import _standing
 
@@ -53,6 +53,8 @@ OUTLINE_FRONT = np.array([[0.44, 0.51, 0.61, 0.97], [0.0, 0.03, 0.30, 0.50]])
 OUTLINE_REAR = np.array([[0.55, 0.61, 0.97], [0.0, 0.07, 0.14]])
 OUTLINE_SIDE = np.array([[0.61, 0.62, 0.97], [0.0, 0.07, 0.15]])
 SIGMA_OUTLINE = (0.3, 0.1)  # m, spread of the end and the side set-ins over those profiles
+# A box upright in the camera frame: its up axis (rect y points down).
+CAMERA_UP = np.array([0.0, -1.0, 0.0])
 
 
 
@@ -70,36 +72,28 @@ def road_y(x: float, z: float, plane: np.ndarray) -> float:
 
 
 @numba.njit(cache=True, nogil=True)
-def _corner_offset(k: int, h: float, w: float, l: float, c: float,
-                   s: float) -> tuple[float, float, float]:
-    """Corner k (kitti.boxes order) of a box of size (h, w, l) and yaw (cos c, sin s), from its
-    bottom centre."""
-    lx, lz = _UNIT[k, 0] * l, _UNIT[k, 2] * w
-    return c * lx + s * lz, _UNIT[k, 1] * h, -s * lx + c * lz
-
-
-@numba.njit(cache=True, nogil=True)
 def corner_columns(x: float, y: float, z: float, h: float, w: float, l: float, ry: float,
-                   P: np.ndarray) -> np.ndarray:
-    """Image columns of the 8 corners (kitti.boxes order) of the box [x, y, z, h, w, l, ry]."""
-    c, s = np.cos(ry), np.sin(ry)
+                   P: np.ndarray, up: np.ndarray) -> np.ndarray:
+    """Image columns of the 8 corners (kitti.boxes order) of the box [x, y, z, h, w, l, ry]
+    standing on `up`."""
+    off = _standing(h, w, l, ry, up)
     u = np.empty(8)
     for k in range(8):
-        ox, oy, oz = _corner_offset(k, h, w, l, c, s)
-        px, py, pz = ox + x, oy + y, oz + z
+        px, py, pz = off[k, 0] + x, off[k, 1] + y, off[k, 2] + z
         u[k] = ((P[0, 0] * px + P[0, 1] * py + P[0, 2] * pz + P[0, 3])
                 / (P[2, 0] * px + P[2, 1] * py + P[2, 2] * pz + P[2, 3]))
     return u
 
 
 @numba.njit(cache=True, nogil=True)
-def side_misfit(boxes7: np.ndarray, P: np.ndarray, bbox: np.ndarray, width: int) -> np.ndarray:
-    """Per 3D box (N, 7), the sum of squared pixel distances between its projected left/right
-    extremes and the 2D box's sides not cut by the image border."""
+def side_misfit(boxes7: np.ndarray, P: np.ndarray, bbox: np.ndarray, width: int,
+                up: np.ndarray) -> np.ndarray:
+    """Per 3D box (N, 7) standing on `up`, the sum of squared pixel distances between its
+    projected left/right extremes and the 2D box's sides not cut by the image border."""
     err = np.zeros(len(boxes7))
     for i in range(len(boxes7)):
         b = boxes7[i]
-        u = corner_columns(b[0], b[1], b[2], b[3], b[4], b[5], b[6], P)
+        u = corner_columns(b[0], b[1], b[2], b[3], b[4], b[5], b[6], P, up)
         if bbox[0] > BORDER_LEFT:
             err[i] += (u.min() - bbox[0]) ** 2
         if bbox[2] < width - BORDER_RIGHT:
@@ -218,8 +212,8 @@ def _wls2(A: np.ndarray, b: np.ndarray, w: np.ndarray) -> tuple[float, float]:
 @numba.njit(cache=True, nogil=True)
 def translation(pxz: np.ndarray, pu: np.ndarray, ph: np.ndarray, h: float, w: float, l: float,
                 ry: float, bbox: np.ndarray, sensor_xz: np.ndarray, start_xz: np.ndarray,
-                P: np.ndarray, width: int, plane: np.ndarray,
-                car: bool) -> tuple[np.ndarray, np.ndarray, int, np.ndarray]:
+                P: np.ndarray, width: int, plane: np.ndarray, car: bool,
+                up: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, np.ndarray]:
     """Bottom-centre (x, y, z) by weighted least squares on faces, 2D sides and the road plane,
     the size (h, w, l) with l and w measured where the returns show both ends, how many of the two
     axes a confirmed face pins down, and the (x, z) direction the centre moves per metre of length
@@ -255,7 +249,7 @@ def translation(pxz: np.ndarray, pu: np.ndarray, ph: np.ndarray, h: float, w: fl
     l, w = sizes[0], sizes[1]
     x, z = _wls2(A[:4], rhs[:4], wts[:4])
     n0, n1, n2, d = plane[0], plane[1], plane[2], plane[3]
-    c, s = np.cos(ry), np.sin(ry)
+    off = _standing(h, w, l, ry, up)
     for _ in range(2):
         # the 2D sides fix the bearing, not the depth: each side's row keeps only its component
         # across the camera ray (else a few pixels of silhouette-vs-box mismatch, which the LS
@@ -263,7 +257,7 @@ def translation(pxz: np.ndarray, pu: np.ndarray, ph: np.ndarray, h: float, w: fl
         y = road_y(x, z, plane)
         norm = max(np.sqrt(x * x + z * z), 1e-9)
         r0, r1 = x / norm, z / norm
-        u = corner_columns(x, y, z, h, w, l, ry, P)
+        u = corner_columns(x, y, z, h, w, l, ry, P, up)
         m = 4
         for side in range(2):
             if (bbox[0] <= BORDER_LEFT) if side == 0 else (bbox[2] >= width - BORDER_RIGHT):
@@ -271,8 +265,7 @@ def translation(pxz: np.ndarray, pu: np.ndarray, ph: np.ndarray, h: float, w: fl
             us = bbox[0] if side == 0 else bbox[2]
             pick = np.argmin(u) if side == 0 else np.argmax(u)
             pr = P[0] - us * P[2]
-            ox, oy, oz = _corner_offset(pick, h, w, l, c, s)
-            r_0 = pr[3] + (pr[0] * ox + pr[1] * oy + pr[2] * oz)
+            r_0 = pr[3] + (pr[0] * off[pick, 0] + pr[1] * off[pick, 1] + pr[2] * off[pick, 2])
             # the row in (x, y, z) with y on the road: a row in (x, z)
             a0 = pr[0] - pr[1] * n0 / n1
             a1 = pr[2] - pr[1] * n2 / n1
@@ -289,8 +282,8 @@ def translation(pxz: np.ndarray, pu: np.ndarray, ph: np.ndarray, h: float, w: fl
 
 @numba.njit(cache=True, nogil=True)
 def length_from_sides(T: np.ndarray, h: float, w: float, l: float, ry: float, slide: np.ndarray,
-                      bbox: np.ndarray, P: np.ndarray, width: int,
-                      plane: np.ndarray) -> tuple[np.ndarray, float]:
+                      bbox: np.ndarray, P: np.ndarray, width: int, plane: np.ndarray,
+                      up: np.ndarray) -> tuple[np.ndarray, float]:
     """A length the returns do not measure, chosen with the 2D box: every length of LENGTH_GRID x
     the prior, the box's anchoring face kept (the centre slides by `slide` per metre); the one
     that best balances the outline's misfit to the 2D box's left and right sides (SIGMA_SIDE_PX
@@ -304,7 +297,7 @@ def length_from_sides(T: np.ndarray, h: float, w: float, l: float, ry: float, sl
         x, z = T[0] + (li - l) * slide[0], T[2] + (li - l) * slide[1]
         boxes[i] = (x, road_y(x, z, plane), z, h, w, li, ry)
     cost = (((boxes[:, 5] - l) / SIGMA_LENGTH) ** 2
-            + side_misfit(boxes, P, bbox, width) / SIGMA_SIDE_PX ** 2)
+            + side_misfit(boxes, P, bbox, width, up) / SIGMA_SIDE_PX ** 2)
     best = np.argmin(cost)
     return boxes[best, :3].copy(), boxes[best, 5]
 
@@ -312,9 +305,6 @@ def length_from_sides(T: np.ndarray, h: float, w: float, l: float, ry: float, sl
 # the height from a 2D box's top may be this far from the fitted one (else the box says nothing)
 HEIGHT_RANGE = (0.5, 1.6)
 
-
-# A box upright in the camera frame: its up axis (rect y points down).
-CAMERA_UP = np.array([0.0, -1.0, 0.0])
 
 
 @numba.njit(cache=True, nogil=True)

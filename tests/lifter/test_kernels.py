@@ -7,7 +7,8 @@ import pytest
 from kitti.boxes import UNIT_CORNERS, box_corners, project_boxes, wrap_angle
 from kitti.calib import Calibration
 from lifter import fit, ground, mono, road
-from lifter.placement import length_from_sides, side_misfit, translation
+from lifter.mono import box_up_of
+from lifter.placement import CAMERA_UP, length_from_sides, side_misfit, translation
 
 CALIB = Calibration.kitti_default()
 P = CALIB.P(2)
@@ -183,15 +184,16 @@ def test_size_and_place_matches_numpy():
             w_ref = ext_b if w < ext_b <= w + fit.MAX_GROW_W else w
         if height.max() > fit.ROOF_SEEN * h:
             h_ref = float(np.clip(h, height.max(), height.max() + fit.ROOF_GAP))
+        up = CAMERA_UP if trial % 2 else box_up_of("box", CALIB)
         T, dims, pinned, slide = translation(xz, u, height, h_ref, w_ref, l_ref, ry, bbox, sensor,
-                                             centroid, P, SIZE[0], plane, is_car)
+                                             centroid, P, SIZE[0], plane, is_car, up)
         length_cost = 0.0
         if not small and slide.any():
-            T, dims[2] = length_from_sides(T, *dims, ry, slide, bbox, P, SIZE[0], plane)
+            T, dims[2] = length_from_sides(T, *dims, ry, slide, bbox, P, SIZE[0], plane, up)
             length_cost = ((dims[2] - l_ref) / fit.SIGMA_LENGTH) ** 2
-        misfit = side_misfit(np.array([[*T, *dims, ry]]), P, bbox, SIZE[0])[0]
+        misfit = side_misfit(np.array([[*T, *dims, ry]]), P, bbox, SIZE[0], up)[0]
         out = fit._size_and_place(xz, u, height, h, w, l, ry, small, is_car, bbox, sensor,
-                                  centroid, P, SIZE[0], plane)
+                                  centroid, P, SIZE[0], plane, up)
         np.testing.assert_allclose(out[0], T, **TIGHT)
         np.testing.assert_allclose(out[1], dims, **TIGHT)
         assert out[2] == pinned

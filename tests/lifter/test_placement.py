@@ -2,10 +2,12 @@
 translation from an object's face returns, and the length the 2D box chooses."""
 
 import numpy as np
+import pytest
 
-from kitti.boxes import box_corners, project_boxes
+from kitti.boxes import box_corners, lidar_upright_corners, project_boxes
 from kitti.calib import Calibration
-from lifter.placement import corner_columns, length_from_sides, side_misfit, translation
+from lifter.mono import box_up_of
+from lifter.placement import CAMERA_UP, corner_columns, length_from_sides, side_misfit, translation
 
 CALIB = Calibration.kitti_default()
 P = CALIB.P(2)
@@ -13,6 +15,7 @@ WIDTH = 1242
 PLANE = np.array([0.0, -1.0, 0.0, 1.65])
 SENSOR = CALIB.lidar_to_rect(np.zeros((1, 3)))[0]
 CAR = np.array([3.0, 1.65, 15.0, 1.5, 1.8, 4.2, 0.4])  # on the road, 15 m ahead, three-quarter view
+LIDAR_UP = box_up_of("box", CALIB)  # KITTI's 2D boxes project the box upright in the LiDAR's frame
 
 
 def _face_returns(box: np.ndarray, step: float = 0.05) -> tuple[np.ndarray, np.ndarray]:
@@ -36,25 +39,43 @@ def _face_returns(box: np.ndarray, step: float = 0.05) -> tuple[np.ndarray, np.n
 
 def test_corner_columns_are_the_projected_corners():
     u = CALIB.rect_to_image(box_corners(CAR[None])[0])[0][:, 0]
-    np.testing.assert_allclose(corner_columns(*CAR, P), u, atol=1e-9)
+    np.testing.assert_allclose(corner_columns(*CAR, P, CAMERA_UP), u, atol=1e-9)
+
+
+def test_corner_columns_on_the_lidars_up_are_those_of_kittis_box():
+    """Stood on the LiDAR's z, the corners are `lidar_upright_corners`' (which turns the heading
+    about that z; the kernel keeps its camera x-z direction: 1e-4 rad apart, 0.01 px here), and
+    the top corners lie px away from the label box's own."""
+    lidar = CALIB.rect_to_image(lidar_upright_corners(CAR[None], CALIB)[0])[0][:, 0]
+    u = corner_columns(*CAR, P, LIDAR_UP)
+    np.testing.assert_allclose(u, lidar, atol=0.02)
+    assert np.abs(u - corner_columns(*CAR, P, CAMERA_UP)).max() > 0.5
 
 
 def test_side_misfit_is_the_squared_pixel_distance_of_the_uncut_sides():
     bbox = project_boxes(CAR[None], CALIB, (WIDTH, 375))[0]
-    assert side_misfit(CAR[None], P, bbox, WIDTH)[0] < 1e-18
+    assert side_misfit(CAR[None], P, bbox, WIDTH, CAMERA_UP)[0] < 1e-18
     moved = bbox + np.array([-3.0, 0.0, 4.0, 0.0])  # 3 px left, 4 px right: 9 + 16
-    assert abs(side_misfit(CAR[None], P, moved, WIDTH)[0] - 25.0) < 1e-9
+    assert abs(side_misfit(CAR[None], P, moved, WIDTH, CAMERA_UP)[0] - 25.0) < 1e-9
     cut = moved.copy()
     cut[0] = 0.0  # the left side at the image border says nothing about the box
-    assert abs(side_misfit(CAR[None], P, cut, WIDTH)[0] - 16.0) < 1e-9
+    assert abs(side_misfit(CAR[None], P, cut, WIDTH, CAMERA_UP)[0] - 16.0) < 1e-9
+    kitti = project_boxes(CAR[None], CALIB, (WIDTH, 375), upright="lidar")[0]
+    assert side_misfit(CAR[None], P, kitti, WIDTH, LIDAR_UP)[0] < 0.02 ** 2
+    assert side_misfit(CAR[None], P, kitti, WIDTH, CAMERA_UP)[0] > 0.1
 
 
-def test_translation_recovers_the_bottom_centre_from_two_faces():
-    bbox = project_boxes(CAR[None], CALIB, (WIDTH, 375))[0]
+# the 2D box as the label box's own projection, and as KITTI's (the box upright in the LiDAR's frame)
+CONVENTIONS = pytest.mark.parametrize("upright, up", [("camera", CAMERA_UP), ("lidar", LIDAR_UP)])
+
+
+@CONVENTIONS
+def test_translation_recovers_the_bottom_centre_from_two_faces(upright, up):
+    bbox = project_boxes(CAR[None], CALIB, (WIDTH, 375), upright=upright)[0]
     xz, u = _face_returns(CAR)
     start = xz.mean(axis=0)  # the centroid of the returns: on the near faces, not the centre
     T, dims, pinned, slide = translation(xz, u, np.zeros(len(xz)), *CAR[3:], bbox, SENSOR[[0, 2]],
-                                         start, P, WIDTH, PLANE, True)
+                                         start, P, WIDTH, PLANE, True, up)
     # the only inconsistent row is the weak pull to the centroid (sigma 3 m against the faces'
     # 5 cm), which the faces hold to under a millimetre
     np.testing.assert_allclose(T, CAR[:3], atol=1e-3)
@@ -63,10 +84,11 @@ def test_translation_recovers_the_bottom_centre_from_two_faces():
     assert not slide.any()  # both ends of the length are seen: the returns measure it
 
 
-def test_length_from_sides_corrects_a_long_prior_in_a_side_view():
+@CONVENTIONS
+def test_length_from_sides_corrects_a_long_prior_in_a_side_view(upright, up):
     car = CAR.copy()
     car[6] = 0.1  # almost broadside: the 2D box's width is mostly the car's length
-    bbox = project_boxes(car[None], CALIB, (WIDTH, 375))[0]
+    bbox = project_boxes(car[None], CALIB, (WIDTH, 375), upright=upright)[0]
     # a prior 0.5 m too long, anchored at the face nearer the sensor (the rear: the car heads
     # away from the sensor, to larger x)
     heading = np.array([np.cos(car[6]), -np.sin(car[6])])
@@ -74,6 +96,7 @@ def test_length_from_sides_corrects_a_long_prior_in_a_side_view():
     l_prior = car[5] + 0.5
     T_prior = car[:3].copy()
     T_prior[[0, 2]] += 0.5 * slide
-    T, length = length_from_sides(T_prior, *car[3:5], l_prior, car[6], slide, bbox, P, WIDTH, PLANE)
+    T, length = length_from_sides(T_prior, *car[3:5], l_prior, car[6], slide, bbox, P, WIDTH, PLANE,
+                                  up)
     assert abs(length - car[5]) < 0.05
     np.testing.assert_allclose(T, car[:3], atol=0.03)
