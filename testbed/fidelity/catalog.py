@@ -10,7 +10,7 @@ from typing import Callable, Protocol
 
 import numpy as np
 
-from .images import CANNY, HIGH_PASS_PX, NEAR_CAR_PX
+from .images import CANNY, HIGH_PASS_PX, NEAR_CAR_PX, ROAD_SURFACE_BANDS
 from .lidar import FAR_M, GROUND_M, NEAR_M, SECTOR_DEG
 from .stats import DatasetStats, Draws
 
@@ -179,6 +179,11 @@ STATS: tuple[Stat, ...] = (
          f"{HIGH_PASS_PX:g}-px high-pass", "grey levels", med("images.road_colour_noise")),
     Stat("images.road_detail", f"bottom fifth's detail: robust SD of the grey after a "
          f"{HIGH_PASS_PX:g}-px high-pass", "grey levels", med("images.road_detail")),
+    *(Stat(f"images.road_surface_{kind}_{lo:g}_{hi:g}m",
+           f"road surface at {lo:g}-{hi:g} m (pixels of the LiDAR's road returns): {what}",
+           "grey levels", med(f"images.road_surface_{kind}_{lo:g}_{hi:g}m"))
+      for lo, hi in ROAD_SURFACE_BANDS
+      for kind, what in (("colour_noise", "colour noise"), ("detail", "detail"))),
     Stat("labels.objects_per_frame", "objects per frame (not DontCare)", "", med("labels.objects")),
     Stat("labels.cars_per_frame", "Cars per frame", "", med("labels.cars")),
     Stat("labels.distance_m", "object distance (ground x-z)", "m", med("labels.distance_m")),

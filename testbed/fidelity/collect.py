@@ -14,7 +14,7 @@ from kitti.dataset import KittiDataset
 from kitti.errors import KittiFormatError
 from kitti.jobs import Backend, InProcess
 
-from .images import car_look_stats, image_stats, read_image
+from .images import car_look_stats, image_stats, read_image, road_surface_stats
 from .labels import label_stats
 from .lidar import lidar_stats
 from .stats import Acc, DatasetStats, merge
@@ -53,7 +53,9 @@ def run_chunk(job: ChunkJob) -> Acc:
             acc.frames.append(fid)
             grey = image_stats(acc, img, nbytes)
             if scan is not None:
-                lidar_stats(acc, scan, calib, labels)
+                road = lidar_stats(acc, scan, calib, labels)
+                if road is not None:
+                    road_surface_stats(acc, img, grey, *road, calib)
             if labels is not None:
                 label_stats(acc, labels, calib, (img.shape[1], img.shape[0]))
                 car_look_stats(acc, grey, labels)

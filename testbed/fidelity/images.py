@@ -11,6 +11,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from kitti.calib import Calibration
 from kitti.errors import KittiFormatError
 from kitti.labels import Object3D
 
@@ -26,6 +27,15 @@ NEAR_CAR_PX = 40
 # edges and lane paint barely move): in R - G (colour noise) and in the grey (detail).
 ROAD_ROWS = 0.2
 HIGH_PASS_PX = 3.0
+# The road surface itself, where the scan says the camera sees road: the pixels that the LiDAR's
+# road returns (within ROAD_SURFACE_M of the frame's fitted road plane: on the carriageway, not
+# on a 0.15 m kerb) project to, in bands of ground distance from camera 0, the same two robust SDs
+# read there (one sample per pixel). The bottom fifth mixes the asphalt's grain with kerbs, paint,
+# cars and shade; this separates it, and the near band from the far (a pixel spans about 1 cm
+# across and 3 cm along the road at 7 m, four times that at 15 m).
+ROAD_SURFACE_M = 0.1
+ROAD_SURFACE_BANDS = ((5.0, 10.0), (10.0, 20.0))
+MIN_ROAD_PIXELS = 30  # fewer road pixels in a band: no value for the frame there
 # The whole KITTI object training set's pixel statistics, every pixel of its 7,481 image_2 PNGs,
 # R / G / B, as detection code that normalises KITTI inputs publishes them: the camera's tone
 # (simgen.camera.KEY) and colour balance (simgen.camera.BALANCE) were set from these.
@@ -61,17 +71,40 @@ def robust_sd(x: np.ndarray) -> float:
     return float(1.4826 * np.median(np.abs(x - np.median(x))))
 
 
+def _high_pass(x: np.ndarray) -> np.ndarray:
+    return x - cv2.GaussianBlur(x, (0, 0), HIGH_PASS_PX)
+
+
 def road_structure(img: np.ndarray, grey: np.ndarray) -> tuple[float, float]:
     """(colour noise, detail) of the bottom ROAD_ROWS of a BGR image and its grey: robust SDs of
     R - G and of the grey after a high-pass."""
     top = int(round(img.shape[0] * (1.0 - ROAD_ROWS)))
     band = img[top:].astype(np.float32)
+    return (robust_sd(_high_pass(band[..., 2] - band[..., 1])),
+            robust_sd(_high_pass(grey[top:].astype(np.float32))))
 
-    def high_pass(x: np.ndarray) -> np.ndarray:
-        return x - cv2.GaussianBlur(x, (0, 0), HIGH_PASS_PX)
 
-    return (robust_sd(high_pass(band[..., 2] - band[..., 1])),
-            robust_sd(high_pass(grey[top:].astype(np.float32))))
+def road_surface_stats(acc: Acc, img: np.ndarray, grey: np.ndarray, rect: np.ndarray,
+                       height: np.ndarray, calib: Calibration) -> None:
+    """Per ROAD_SURFACE_BANDS band, the colour noise and detail (`road_structure`'s) at the pixels
+    the scan's road returns project to: `rect` the returns in the rectified frame, `height` their
+    heights above the frame's road plane."""
+    road = (np.abs(height) < ROAD_SURFACE_M) & (rect[:, 2] > 1.0)
+    uv, _ = calib.rect_to_image(rect[road])
+    ground = np.hypot(rect[road, 0], rect[road, 2])
+    u, v = np.round(uv[:, 0]).astype(np.int64), np.round(uv[:, 1]).astype(np.int64)
+    h, w = grey.shape
+    inside = (u >= 0) & (u < w) & (v >= 0) & (v < h)
+    bgr = img.astype(np.float32)
+    colour = _high_pass(bgr[..., 2] - bgr[..., 1]).ravel()
+    detail = _high_pass(grey.astype(np.float32)).ravel()
+    for lo, hi in ROAD_SURFACE_BANDS:
+        m = inside & (ground >= lo) & (ground < hi)
+        pix = np.unique(v[m] * w + u[m])
+        if len(pix) < MIN_ROAD_PIXELS:
+            continue
+        acc.put(f"images.road_surface_colour_noise_{lo:g}_{hi:g}m", robust_sd(colour[pix]))
+        acc.put(f"images.road_surface_detail_{lo:g}_{hi:g}m", robust_sd(detail[pix]))
 
 
 def channel_sums(img: np.ndarray) -> np.ndarray:

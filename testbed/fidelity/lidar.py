@@ -25,13 +25,15 @@ PERCENTILES = (10, 50, 90, 99)
 
 
 def lidar_stats(acc: Acc, scan: np.ndarray, calib: Calibration,
-                labels: list[Object3D] | None) -> None:
-    """Per-frame values and pooled histograms of one (N, 4) scan."""
+                labels: list[Object3D] | None) -> tuple[np.ndarray, np.ndarray] | None:
+    """Per-frame values and pooled histograms of one (N, 4) scan; the returns in the rectified
+    frame and their heights above the fitted road plane (None for an empty scan), which the
+    image statistics of the road surface read."""
     pts = scan[:, :3].astype(np.float64)
     refl = scan[:, 3]
     acc.put("lidar.points", len(pts))
     if not len(pts):
-        return
+        return None
     r = np.sqrt(np.einsum("ij,ij->i", pts, pts))
     for q, v in zip(PERCENTILES, np.percentile(r, PERCENTILES)):
         acc.put(f"lidar.range_p{q}_m", v)
@@ -55,6 +57,7 @@ def lidar_stats(acc: Acc, scan: np.ndarray, calib: Calibration,
             acc.put(f"lidar.near_ground_{side}", np.count_nonzero(ground[m]) / np.count_nonzero(m))
     if labels is not None:
         _car_points(acc, rect, refl, [o for o in labels if o.type == "Car"])
+    return rect, height
 
 
 def _far(acc: Acc, pts: np.ndarray, far: np.ndarray, height: np.ndarray, refl: np.ndarray) -> None:

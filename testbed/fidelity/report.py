@@ -14,8 +14,8 @@ from kitti.io import atomic_write_text
 
 from .bootstrap import LEVEL, SEED
 from .compare import Comparison, Row
-from .images import (CANNY, HIGH_PASS_PX, KITTI_TRAINING_PIXEL_MEAN, KITTI_TRAINING_PIXEL_SD, NEAR_CAR_PX,
-                     ROAD_ROWS, pooled_channels)
+from .images import (CANNY, HIGH_PASS_PX, KITTI_TRAINING_PIXEL_MEAN, KITTI_TRAINING_PIXEL_SD,
+                     MIN_ROAD_PIXELS, NEAR_CAR_PX, ROAD_ROWS, ROAD_SURFACE_M, pooled_channels)
 from .labels import CLASSES, KITTI_TRAINING_FRAMES, KITTI_TRAINING_LABELS
 from .lidar import FAR_M, GROUND_M, NEAR_M
 from .stats import DatasetStats
@@ -43,7 +43,10 @@ NOTES = f"""\
   {CANNY[0]} and {CANNY[1]}. The road's fine structure: in the bottom {ROAD_ROWS:.0%} of the rows,
   R - G and the grey less a Gaussian blur of {HIGH_PASS_PX:g} px, each read as 1.4826 x its median
   absolute deviation (a robust SD: lane paint and edges barely move it). Sensor noise moves both;
-  a surface's colour grain at one brightness only the first.
+  a surface's colour grain at one brightness only the first. The road surface: the same two at
+  the pixels (each once) that the scan's returns within {ROAD_SURFACE_M} m of the road plane
+  project to with P2, by ground distance from camera 0 (rect x-z), in frames with at least
+  {MIN_ROAD_PIXELS} such pixels in the band.
 - Objects are every label but DontCare. Projection gap: the label's 3D box corners projected with
   P2 and clipped to the image, max |side difference| against its 2D box.
 - A near, whole Car: a Car label at least {NEAR_CAR_PX} px tall, truncation 0, occlusion 0; its

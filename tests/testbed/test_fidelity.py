@@ -86,6 +86,16 @@ def test_report_numbers_match_a_hand_computation_on_one_real_frame(real_root, tm
     near = np.hypot(scan[:, 0], scan[:, 1]) < 8.0
     far = r > 40
     bearing = np.degrees(np.abs(np.arctan2(scan[:, 1].astype(np.float64), scan[:, 0].astype(np.float64))))
+    # the road surface at 5-10 m: the pixels (each once) the returns within 0.1 m of the road plane
+    # project to with P2, 5-10 m from camera 0 on the ground
+    road = rect[(np.abs(height) < 0.1) & (rect[:, 2] > 1.0)]
+    uvw = np.c_[road, np.ones(len(road))] @ read_calib(t / "calib/000000.txt").P2.T
+    u, v = (np.round(uvw[:, i] / uvw[:, 2]).astype(int) for i in (0, 1))
+    band = np.hypot(road[:, 0], road[:, 2])
+    rows, cols = grey.shape
+    keep = (u >= 0) & (u < cols) & (v >= 0) & (v < rows) & (band >= 5) & (band < 10)
+    pix = np.unique(v[keep] * cols + u[keep])
+    assert len(pix) > 100
     hand = {
         "lidar.points_per_sweep": (t / "velodyne/000000.bin").stat().st_size / 16,
         "lidar.beyond_40m_share": np.mean(far),
@@ -107,6 +117,9 @@ def test_report_numbers_match_a_hand_computation_on_one_real_frame(real_root, tm
         # (scipy's, mirrored at the edges as cv2's default), as 1.4826 x the median absolute deviation
         "images.road_colour_noise": _robust_sd(_high_pass(rgb[296:, :, 0] - rgb[296:, :, 1])),
         "images.road_detail": _robust_sd(_high_pass(grey[296:])),
+        "images.road_surface_detail_5_10m": _robust_sd(_high_pass(grey).ravel()[pix]),
+        "images.road_surface_colour_noise_5_10m":
+            _robust_sd(_high_pass(rgb[..., 0] - rgb[..., 1]).ravel()[pix]),
         "labels.objects_per_frame": 1,
         "labels.proj_gap_px": _hand_proj_gap(t / "label_2/000000.txt", t / "calib/000000.txt",
                                              (rgb.shape[1], rgb.shape[0])),
@@ -189,8 +202,11 @@ def test_a_dataset_without_velodyne_or_labels_reports_the_groups_absent(sim_root
     assert stats.groups == {"images": True, "lidar": False, "labels": False}
     comp = compare(stats, compute_stats(sim_root))
     verdicts = {r.key: r.verdict for r in comp.rows}
-    assert all(v == "n/a" for k, v in verdicts.items() if not k.startswith("images."))
-    assert all(v != "n/a" for k, v in verdicts.items() if k.startswith("images."))
+    # the road surface's statistics read the image where the scan's road returns fall: no scan, none
+    needs_scan = {k for k in verdicts if k.startswith("images.road_surface_")}
+    assert len(needs_scan) == 4
+    assert all(v == "n/a" for k, v in verdicts.items() if not k.startswith("images.") or k in needs_scan)
+    assert all(v != "n/a" for k, v in verdicts.items() if k.startswith("images.") and k not in needs_scan)
     write_report(comp, tmp_path / "out")
     report = (tmp_path / "out/report.md").read_text()
     assert "LiDAR: absent in sim (no velodyne/)" in report
