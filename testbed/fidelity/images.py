@@ -95,12 +95,17 @@ def road_surface_stats(acc: Acc, img: np.ndarray, grey: np.ndarray, rect: np.nda
     u, v = np.round(uv[:, 0]).astype(np.int64), np.round(uv[:, 1]).astype(np.int64)
     h, w = grey.shape
     inside = (u >= 0) & (u < w) & (v >= 0) & (v < h)
-    bgr = img.astype(np.float32)
+    if not inside.any():
+        return
+    # the high-pass of the rows the road pixels lie in: a Gaussian reaches 4 sigma (cv2's kernel
+    # for float images), so rows from that far above the first are as the whole image's
+    top = max(int(v[inside].min()) - int(np.ceil(4 * HIGH_PASS_PX)) - 1, 0)
+    bgr = img[top:].astype(np.float32)
     colour = _high_pass(bgr[..., 2] - bgr[..., 1]).ravel()
-    detail = _high_pass(grey.astype(np.float32)).ravel()
+    detail = _high_pass(grey[top:].astype(np.float32)).ravel()
     for lo, hi in ROAD_SURFACE_BANDS:
         m = inside & (ground >= lo) & (ground < hi)
-        pix = np.unique(v[m] * w + u[m])
+        pix = np.unique((v[m] - top) * w + u[m])
         if len(pix) < MIN_ROAD_PIXELS:
             continue
         acc.put(f"images.road_surface_colour_noise_{lo:g}_{hi:g}m", robust_sd(colour[pix]))

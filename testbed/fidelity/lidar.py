@@ -84,10 +84,27 @@ def _rings(acc: Acc, pts: np.ndarray, bev: np.ndarray) -> None:
     ring, method = recover_rings(pts, RINGS)
     el = np.degrees(np.arctan2(pts[:, 2], bev))
     counts = np.bincount(ring, minlength=RINGS)[:RINGS]
-    per_ring = np.split(el[np.argsort(ring, kind="stable")], np.cumsum(counts)[:-1])
     acc.row("lidar.ring_returns", counts)
-    acc.row("lidar.ring_elevation_deg", [np.median(e) if len(e) else np.nan for e in per_ring])
+    acc.row("lidar.ring_elevation_deg", group_medians(ring, el, RINGS))
     acc.put("lidar.ring_by_azimuth", method == "azimuth-wrap")
+
+
+def group_medians(group: np.ndarray, values: np.ndarray, groups: int) -> np.ndarray:
+    """np.median of `values` in each group 0..groups-1 (NaN for an empty one), from one sort by
+    (group, value) instead of a median call per group: the middle value, or the mean of the two
+    middle ones, as numpy takes it."""
+    keep = group < groups
+    g, v = group[keep], values[keep]
+    order = np.lexsort((v, g))
+    v = v[order]
+    counts = np.bincount(g, minlength=groups)
+    start = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    out = np.full(groups, np.nan)
+    has = counts > 0
+    lo = start[has] + (counts[has] - 1) // 2
+    hi = start[has] + counts[has] // 2
+    out[has] = (v[lo] + v[hi]) / 2
+    return out
 
 
 def _car_points(acc: Acc, rect: np.ndarray, refl: np.ndarray, cars: list[Object3D]) -> None:

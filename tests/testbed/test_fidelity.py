@@ -316,3 +316,16 @@ def test_the_look_of_a_near_whole_car_by_hand(real_root):
         assert got == pytest.approx(value, rel=5e-3, abs=0.05), key
     # a dark car, darker still below
     assert hand["labels.car_grey_mean"] < 100 and hand["labels.car_bottom_darkening"] > 10
+
+
+def test_group_medians_are_numpys_median_per_group():
+    from testbed.fidelity.lidar import group_medians
+
+    rng = np.random.default_rng(0)
+    for trial in range(100):
+        n = int(rng.integers(0, 300))
+        group, values = rng.integers(0, 70, n), rng.normal(size=n)
+        if trial % 3 == 0:
+            values = np.round(values, 1)  # ties
+        want = [np.median(values[group == k]) if np.any(group == k) else np.nan for k in range(64)]
+        np.testing.assert_array_equal(group_medians(group, values, 64), want)
