@@ -6,9 +6,12 @@ Car AP|R40 (3D @0.7 and @0.5, moderate) and, per labelled Car/Van, the errors of
         --out runs/lifter/real [--methods fit,mono,frustum] [--priors net,truth] [--objects]
 
 Per object: depth, truncation/occlusion, the centre error (along the camera ray, across it, and
-in height), the yaw error (modulo 180 degrees for the "flipped" count), the size error (h, w, l),
-the 3D IoU, and the road height under the truth box as the method saw it (`road_err`: the
-true bottom's height above the road plane the method used; 0 for a perfect plane). Writes
+in height), the yaw error, the size error (h, w, l), the 3D IoU, and how high the label's bottom
+stands above the scan's road under it (`road_err`: above the plane `lifter.road.scan_road` fits
+there, the road the methods stand boxes on without planes/; 0 for a label on that road). An
+image-only placement on that road puts the box farther along the ray by about depth x road_err /
+the camera's height above the road: the last table says how much of each method's along-ray
+error that accounts for. Writes
 OUT/<method>_<priors>/ (result files) and OUT/objects.json, prints markdown. With fewer than 41
 evaluated cars the devkit's AP|R40 cannot reach 100 (see `ap_cap`): the table gives it as a share
 of that cap too, and counts the moderate cars placed within IoU 0.7 and 0.5.
@@ -29,7 +32,10 @@ from kitti.eval.bootstrap import DRAWS, bootstrap_ap
 from kitti.eval.protocol import outside_difficulty
 from kitti.iou import iou_3d
 from kitti.labels import read_label
+from lifter.ground import height_above
 from lifter.pipeline import lift_dataset
+from lifter.points import frame_points
+from lifter.road import LocalRoad, scan_road
 
 
 def object_errors(gt, pr) -> dict:
@@ -58,7 +64,14 @@ def ap_cap(n_gt: int) -> float:
     return 100.0 * min(max(n_gt - 1, 0), 40) / 40
 
 
-def per_object(data: Path, pred_dir: Path, ids: list[str]) -> list[dict]:
+def scan_roads(data: Path, ids: list[str]) -> dict[str, LocalRoad]:
+    """The scan's road of each frame that has a scan."""
+    ds = KittiDataset(data)
+    return {fid: scan_road(frame_points(v, ds.calib(fid), None))
+            for fid in ids if (v := ds.velodyne(fid)) is not None}
+
+
+def per_object(data: Path, pred_dir: Path, ids: list[str], roads: dict[str, LocalRoad]) -> list[dict]:
     ds = KittiDataset(data)
     rows = []
     for fid in ids:
@@ -70,13 +83,17 @@ def per_object(data: Path, pred_dir: Path, ids: list[str]) -> list[dict]:
             row = {"frame": fid, "type": gt.type, "trunc": gt.truncated, "occ": gt.occluded,
                    "height_px": gt.height_px}
             row.update(object_errors(gt, match[0]) if match else {"iou3d": 0.0})
+            if fid in roads:
+                plane = roads[fid].plane_at(gt.location[0], gt.location[2])
+                row["road_err"] = float(height_above(np.asarray(gt.location)[None], plane)[0])
+                row["camera_above_road"] = float(height_above(np.zeros((1, 3)), plane)[0])
             rows.append(row)
     return rows
 
 
 def _table(rows: list[dict]) -> str:
-    head = ("| frame | type | tr | occ | depth | along | across | dy | yaw deg | dh | dw | dl | IoU |\n"
-            "|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    head = ("| frame | type | tr | occ | depth | along | across | dy | yaw deg | dh | dw | dl | IoU | road_err |\n"
+            "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     lines = [head]
     for r in rows:
         if "depth" not in r:
@@ -85,7 +102,7 @@ def _table(rows: list[dict]) -> str:
         lines.append(f"| {r['frame']} | {r['type']} | {r['trunc']:.2f} | {r['occ']} | {r['depth']:.1f} "
                      f"| {r['d_along']:+.2f} | {r['d_across']:+.2f} | {r['d_y']:+.2f} "
                      f"| {r['d_yaw_deg']:+.1f} | {r['d_h']:+.2f} | {r['d_w']:+.2f} | {r['d_l']:+.2f} "
-                     f"| {r['iou3d']:.2f} |")
+                     f"| {r['iou3d']:.2f} | {r.get('road_err', float('nan')):+.3f} |")
     return "\n".join(lines)
 
 
@@ -101,6 +118,7 @@ def main() -> None:
     args = ap.parse_args()
     data, out = Path(args.data), Path(args.out)
     ids = KittiDataset(data).ids(args.split)
+    roads = scan_roads(data, ids)
     summary, objects = [], {}
     for method in args.methods.split(","):
         for priors in args.priors.split(","):
@@ -109,7 +127,7 @@ def main() -> None:
                 lift_dataset(data, None, method, pred, args.split, priors=priors, progress=False)
             r = evaluate_folders(data / "training" / "label_2", pred, classes=("Car",),
                                  progress=False)
-            rows = per_object(data, pred, ids)
+            rows = per_object(data, pred, ids, roads)
             objects[f"{method}/{priors}"] = rows
             cars = [x for x in rows if x["type"] == "Car" and "depth" in x]
             mod = [x for x in rows if x["type"] == "Car" and is_moderate(x)]
@@ -130,8 +148,28 @@ def main() -> None:
               f"| {n7} / {n5} of {n} | {med['d_along']:.2f} / {med['d_across']:.2f} / {med['d_y']:.2f} "
               f"| {med['d_yaw_deg']:.1f} | {med['d_l']:.2f} |")
     print("\n" + "\n".join(interval_rows(data, out, ids, [(m, p) for m, p, *_ in summary])))
+    if roads:
+        print("\n" + "\n".join(bottom_rows(objects)))
     out.mkdir(parents=True, exist_ok=True)
     (out / "objects.json").write_text(json.dumps(objects, indent=1))
+
+
+def bottom_rows(objects: dict[str, list[dict]]) -> list[str]:
+    """Per run, over its lifted Cars: the labels' bottoms above the scan's road (median), the
+    median |along-ray error|, and the same less what the bottom's height accounts for."""
+    lines = ["| method | priors | Cars | label bottom above the scan's road, median (m) | median abs along "
+             "(m) | median abs (along - depth x road_err / camera height) (m) |",
+             "|---|---|---|---|---|---|"]
+    for run, rows in objects.items():
+        cars = [x for x in rows if x["type"] == "Car" and "depth" in x and "road_err" in x]
+        if not cars:
+            continue
+        along = np.array([x["d_along"] for x in cars])
+        expected = np.array([x["depth"] * x["road_err"] / x["camera_above_road"] for x in cars])
+        lines.append(f"| {' | '.join(run.split('/'))} | {len(cars)} "
+                     f"| {np.median([x['road_err'] for x in cars]):+.3f} | {np.median(np.abs(along)):.2f} "
+                     f"| {np.median(np.abs(along - expected)):.2f} |")
+    return lines
 
 
 def interval_rows(data: Path, out: Path, ids: list[str], runs: list[tuple[str, str]]) -> list[str]:

@@ -58,14 +58,11 @@ class LiftMethod:
 
 
 def _scan_road(f: Frame, pts=None):
-    """The road of the scan: the frame's RANSAC plane and the road returns near each object."""
-    from .ground import fit_ground_plane
+    """The road of the scan (`road.scan_road`), from the frame's points when not given."""
     from .points import frame_points
-    from .road import LocalRoad
+    from .road import scan_road
 
-    pts = frame_points(f.velodyne, f.calib, None) if pts is None else pts
-    plane = fit_ground_plane(pts.rect)
-    return LocalRoad(pts.rect, plane, pts.sensor[[0, 2]])
+    return scan_road(frame_points(f.velodyne, f.calib, None) if pts is None else pts)
 
 
 def _road(f: Frame, pts=None):

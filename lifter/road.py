@@ -26,7 +26,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from .ground import height_above, normalise_plane
+from .ground import fit_ground_plane, height_above, normalise_plane
+from .points import FramePoints
 
 BAND = 2.0          # m around the frame's plane where road is looked for
 MAX_DEVIATION = 1.0  # m, most a road user's local road may lie off the frame's plane (the dev
@@ -68,6 +69,13 @@ _NZ = int((GRID_Z[1] - GRID_Z[0]) / CELL)
 _NR = int(MAX_RANGE / RANGE_BIN)
 _MAX_TAN = 1.5  # sectors cover azimuths within atan(1.5) = 56 degrees of the optical axis (the
                 # returns come cut to lifter.points' 50-degree wedge)
+
+
+def scan_road(pts: FramePoints) -> LocalRoad:
+    """The road of a scan's returns in the camera's wedge (`points.frame_points`): the frame's
+    RANSAC plane and the road returns near each object, what the lifter places boxes on where a
+    frame has no planes/."""
+    return LocalRoad(pts.rect, fit_ground_plane(pts.rect), pts.sensor[[0, 2]])
 
 
 class LocalRoad:

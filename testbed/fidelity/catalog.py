@@ -164,6 +164,8 @@ STATS: tuple[Stat, ...] = (
          car_points(20, 40, visible=True)),
     Stat("lidar.visible_car_points_40_80m", "points on a fully visible Car at 40-80 m", "",
          car_points(40, 80, visible=True)),
+    Stat("lidar.car_bottom_above_road_m", "a Car label's bottom above the scan's road under it", "m",
+         med("lidar.car_bottom_above_road_m")),
     Stat("lidar.car_zero_share_0_20m", "share of the points on a Car at 0-20 m that read 0", "",
          car_points(0, 20, key="lidar.car_zero_share")),
     Stat("images.grey_mean", "mean grey level", "", med("images.grey_mean")),

@@ -36,7 +36,9 @@ NOTES = f"""\
   among the returns within {NEAR_M:.0f} m (bird's-eye), left (LiDAR y > 0) and right of it: what
   stands beside the car (parked or passing cars, walls, hedges) takes those returns from the road.
 - Points on a Car: .bin points inside the label's 3D box (velo -> rect with the frame's calib),
-  and the share of them whose reflectance is 0. Far returns' reading: the median of the nonzero
+  and the share of them whose reflectance is 0. A Car label's bottom above the road: its
+  bottom-face centre's height above the road plane the lifter fits to the scan's road returns
+  near it (`lifter.road.scan_road`). Far returns' reading: the median of the nonzero
   reflectance of the returns beyond {FAR_M[0]:.0f} m.
 - Images are read with cv2; grey is cv2's BGR2GRAY; dI/dx is the forward difference along x;
   gradient magnitude is sqrt(dx^2 + dy^2) of forward differences; edges are Canny with thresholds

@@ -329,3 +329,25 @@ def test_group_medians_are_numpys_median_per_group():
             values = np.round(values, 1)  # ties
         want = [np.median(values[group == k]) if np.any(group == k) else np.nan for k in range(64)]
         np.testing.assert_array_equal(group_medians(group, values, 64), want)
+
+
+def test_a_car_labels_bottom_above_the_scans_road_by_geometry():
+    """A flat road scanned on a grid, one Car label standing on it and one 0.1 m above it: the
+    statistic reads each label's bottom above the road the lifter finds under it."""
+    from kitti.calib import Calibration
+    from kitti.labels import Object3D
+    from testbed.fidelity.lidar import lidar_stats
+
+    calib = Calibration.kitti_default()
+    x, z = np.meshgrid(np.arange(-15.0, 15.0, 0.2), np.arange(3.0, 50.0, 0.2))
+    road = np.stack([x.ravel(), np.full(x.size, 1.65), z.ravel()], axis=1)  # rect y points down
+    scan = np.c_[calib.rect_to_lidar(road), np.full(len(road), 0.2)].astype(np.float32)
+
+    def car(y: float, z: float) -> Object3D:
+        return Object3D("Car", 0.0, 0, 0.0, np.array([500.0, 150.0, 560.0, 190.0]), 1.5, 1.7, 4.0,
+                        np.array([2.0, y, z]), 0.0)
+
+    acc = Acc(frames=["0"])
+    lidar_stats(acc, scan, calib, [car(1.65, 20.0), car(1.55, 30.0)])
+    got = np.concatenate(acc.values["lidar.car_bottom_above_road_m"])
+    np.testing.assert_allclose(got, [0.0, 0.1], atol=1e-4)
