@@ -8,10 +8,12 @@ and seed, or a user mesh's path), the static world from its scenery parameters.
 from __future__ import annotations
 
 from dataclasses import asdict
+from pathlib import Path
 
 import numpy as np
 
 from kitti.calib import KEYS, Calibration
+from kitti.derived import read_json
 
 from .labels import ActorTruth
 from .meshes import build_actor_parts
@@ -90,3 +92,23 @@ def world_from_meta(meta: dict) -> World:
                  rig=_rig_from_json(meta["rig"]), light=Light(**meta["light"]),
                  sensor=meta["sensor"], scenery=meta["scenery"], seed=meta["seed"],
                  frame_index=meta["frame_index"])
+
+
+def meta_ids(root: Path, command: str, part: str = "training") -> list[str]:
+    """The frame ids of a generated root's meta/, which `command` rebuilds worlds from."""
+    meta_dir = Path(root) / part / "meta"
+    ids = sorted(p.stem for p in meta_dir.glob("*.json"))
+    if not ids:
+        raise ValueError(f"{meta_dir}: no meta/NNNNNN.json to rebuild worlds from "
+                         f"({command} needs a dataset written by `testbed generate`)")
+    return ids
+
+
+def load_world(meta_path: Path) -> tuple[dict, World]:
+    """A frame's meta/NNNNNN.json and the world rebuilt from it; one that cannot rebuild a world
+    is named."""
+    meta = read_json(meta_path)
+    try:
+        return meta, world_from_meta(meta)
+    except (KeyError, TypeError, ValueError) as e:
+        raise ValueError(f"{meta_path}: cannot rebuild the world: {e}") from None

@@ -50,18 +50,14 @@ def source_rules(src: Path) -> LabelRules:
 def relabel_frame(job: RelabelJob) -> str:
     """Rebuild one frame's world from its meta and write its label and meta under the rules."""
     from .labels import derive
-    from .meta import meta_with_truths, world_from_meta
+    from .meta import load_world, meta_with_truths
 
     label_out = job.dst / "label_2" / f"{job.fid}.txt"
     meta_out = job.dst / "meta" / f"{job.fid}.json"
     if label_out.exists() and meta_out.exists():
         return job.fid
     meta_path = job.src / "meta" / f"{job.fid}.json"
-    meta = read_json(meta_path)
-    try:
-        world = world_from_meta(meta)
-    except (KeyError, TypeError, ValueError) as e:
-        raise ValueError(f"{meta_path}: cannot rebuild the world: {e}") from None
+    meta, world = load_world(meta_path)
     inst_path = job.src / "instance_2" / f"{job.fid}.png"
     instance = cv2.imread(str(inst_path), cv2.IMREAD_UNCHANGED)
     if instance is None or instance.shape != (world.rig.height, world.rig.width):
@@ -81,11 +77,9 @@ def relabel_frame(job: RelabelJob) -> str:
 
 def relabel_jobs(src: Path, out: Path, rules: LabelRules) -> list[RelabelJob]:
     """Check the source, claim and mirror the output root, and list one job per frame."""
-    meta_dir = src / "training" / "meta"
-    ids = sorted(p.stem for p in meta_dir.glob("*.json"))
-    if not ids:
-        raise ValueError(f"{meta_dir}: no meta/NNNNNN.json to rebuild worlds from "
-                         "(relabel needs a dataset written by `testbed generate`)")
+    from .meta import meta_ids
+
+    ids = meta_ids(src, "relabel")
     source_rules(src)  # a generated dataset, with a manifest to rewrite
     claim_output(src, out, {"command": "relabel", "labels": rules.model_dump(mode="json")},
                  provenance=LABEL_PROVENANCE)

@@ -13,7 +13,7 @@ import zlib
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from kitti.derived import claim_output, dump_json, meta_with_lidar, mirror_dataset, read_json
+from kitti.derived import claim_output, dump_json, meta_with_lidar, mirror_dataset
 from kitti.io import atomic_write_text
 from kitti.jobs import Backend, InProcess
 from kitti.velodyne_info import info_path, velodyne_path
@@ -62,30 +62,16 @@ class RescanJob:
     request: RescanRequest
 
 
-def rescan_ids(src: Path, part: str = "training") -> list[str]:
-    meta_dir = src / part / "meta"
-    ids = sorted(p.stem for p in meta_dir.glob("*.json"))
-    if not ids:
-        raise ValueError(f"{meta_dir}: no meta/NNNNNN.json to rebuild worlds from "
-                         "(rescan needs a dataset written by `testbed generate`)")
-    return ids
-
-
 def rescan_frame(job: RescanJob) -> str:
     """Rebuild one frame's world from its meta and scan it with the requested sensor."""
     from .lidar import preset, scan, write_scan  # the simulator; imported in the worker
-    from .meta import world_from_meta
+    from .meta import load_world
 
     meta_out = job.dst / "meta" / f"{job.fid}.json"
     if meta_out.exists() and velodyne_path(job.dst, job.fid).exists() \
             and info_path(job.dst, job.fid).exists():
         return job.fid
-    meta_path = job.src / "meta" / f"{job.fid}.json"
-    meta = read_json(meta_path)
-    try:
-        world = world_from_meta(meta)
-    except (KeyError, TypeError, ValueError) as e:
-        raise ValueError(f"{meta_path}: cannot rebuild the world: {e}") from None
+    meta, world = load_world(job.src / "meta" / f"{job.fid}.json")
     lidar, weather = job.request.lidar, job.request.weather
     if weather is not None and weather.record():  # the sensor sees other weather, not the images
         world.weather = replace(world.weather, **weather.record())
@@ -100,10 +86,11 @@ def rescan_frame(job: RescanJob) -> str:
 def rescan_jobs(src: Path, out: Path, request: RescanRequest) -> list[RescanJob]:
     """Check the request, claim and mirror the output root, and list one job per frame."""
     from .lidar import preset
+    from .meta import meta_ids
 
     lidar = request.lidar
     preset(lidar.preset, beams=lidar.beams, max_range=lidar.max_range)  # fail before any work
-    ids = rescan_ids(src)
+    ids = meta_ids(src, "rescan")
     claim_output(src, out, {"command": "rescan", "lidar": request.record()})
     mirror_dataset(src, out)
     return [RescanJob(src / "training", out / "training", fid, request) for fid in ids]
