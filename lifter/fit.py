@@ -173,11 +173,16 @@ class _View:
         return self.calib.P(self.cam)
 
     @cached_property
-    def up(self) -> np.ndarray:
+    def box_up(self) -> np.ndarray | None:
         """The up axis of the box whose projection a 2D box is (`mono.box_up_of`): the LiDAR's z
-        for KITTI's 2D boxes, the camera's for a silhouette's."""
-        up = box_up_of(self.outline, self.calib)
-        return CAMERA_UP if up is None else up
+        for KITTI's 2D boxes, None for a silhouette's."""
+        return box_up_of(self.outline, self.calib)
+
+    @property
+    def up(self) -> np.ndarray:
+        """`box_up` for the placement kernels, which compare a silhouette with the camera-upright
+        box."""
+        return CAMERA_UP if self.box_up is None else self.box_up
 
 
 class _Placed(NamedTuple):
@@ -208,7 +213,7 @@ class _Returns:
 def _fallback(box: Box2D, prior: Prior, view: _View, plane: np.ndarray) -> Lifted:
     sol = solve_from_alpha(prior.dims, prior.alpha, box.bbox, view.calib, view.image_size, plane,
                            view.cam, cut_ok=True, contact=contact_of(box.type, view.outline),
-                           box_up=box_up_of(view.outline, view.calib))
+                           box_up=view.box_up)
     return Lifted(sol.location, sol.rotation_y, np.asarray(prior.dims, dtype=float),
                   quality=0.2 * _image_depth_trust(sol.location))
 

@@ -57,7 +57,6 @@ SIGMA_OUTLINE = (0.3, 0.1)  # m, spread of the end and the side set-ins over tho
 CAMERA_UP = np.array([0.0, -1.0, 0.0])
 
 
-
 @numba.njit(cache=True, nogil=True)
 def percentile(v: np.ndarray, q: float) -> float:
     """The q-th percentile by nearest rank: np.percentile's interpolation costs ten times more."""
@@ -304,7 +303,6 @@ def length_from_sides(T: np.ndarray, h: float, w: float, l: float, ry: float, sl
 
 # the height from a 2D box's top may be this far from the fitted one (else the box says nothing)
 HEIGHT_RANGE = (0.5, 1.6)
-
 
 
 @numba.njit(cache=True, nogil=True)
