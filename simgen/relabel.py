@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
+from pydantic import ValidationError
 
 from kitti.derived import (LABEL_DIRS, LABEL_PROVENANCE, MANIFEST, claim_output, dump_json,
                            mirror_dataset, read_json)
@@ -44,7 +45,10 @@ def source_rules(src: Path) -> LabelRules:
     labels = read_json(path).get("spec", {}).get("labels")
     if not isinstance(labels, dict):
         raise ValueError(f"{path}: key 'spec.labels' missing: not a `testbed generate` manifest")
-    return LabelRules.model_validate(labels)
+    try:
+        return LabelRules.model_validate(labels)
+    except ValidationError as e:  # named by the manifest's key, not taken for an option's error
+        raise ValueError(f"{path}: key 'spec.labels': {e.errors()[0]['msg']}") from None
 
 
 def relabel_frame(job: RelabelJob) -> str:
