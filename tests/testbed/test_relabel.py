@@ -106,8 +106,12 @@ def test_relabel_names_what_it_cannot_do(source, tmp_path):
     (not_generated / "training" / "meta").mkdir(parents=True)
     assert "simgen.json: no generator manifest" in \
         _fails("relabel", not_generated, "--out", tmp_path / "c")
-    (not_generated / "simgen.json").write_bytes((source / "simgen.json").read_bytes())
+    manifest = json.loads((source / "simgen.json").read_text())
+    (not_generated / "simgen.json").write_text(json.dumps(manifest))
     assert "no meta/NNNNNN.json" in _fails("relabel", not_generated, "--out", tmp_path / "c")
+    manifest["spec"]["labels"]["min_height_px"] = -1.0  # a manifest the rules no longer accept
+    (not_generated / "simgen.json").write_text(json.dumps(manifest))
+    assert "simgen.json: key 'spec.labels'" in _fails("relabel", not_generated, "--out", tmp_path / "c")
     camera_only = tmp_path / "camera_only"
     generate(load_spec("scenes/urban.yaml").model_copy(update={"lidar": None}), camera_only, frames=1)
     assert "000000.json: the frame has no scan" in \
