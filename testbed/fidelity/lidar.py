@@ -94,20 +94,21 @@ def _rings(acc: Acc, pts: np.ndarray, bev: np.ndarray) -> None:
 
 
 def group_medians(group: np.ndarray, values: np.ndarray, groups: int) -> np.ndarray:
-    """np.median of `values` in each group 0..groups-1 (NaN for an empty one), from one sort by
-    (group, value) instead of a median call per group: the middle value, or the mean of the two
-    middle ones, as numpy takes it."""
-    keep = group < groups
-    g, v = group[keep], values[keep]
-    order = np.lexsort((v, g))
-    v = v[order]
+    """np.median of `values` in each group 0..groups-1 (NaN for an empty one): the values sorted
+    into their groups once (a stable radix sort of the small group numbers), then each group's
+    two middle values by partition, averaged as numpy averages them."""
+    keep = (group >= 0) & (group < groups)
+    g = group[keep].astype(np.int16)
+    v = values[keep][np.argsort(g, kind="stable")]
     counts = np.bincount(g, minlength=groups)
-    start = np.concatenate([[0], np.cumsum(counts)[:-1]])
     out = np.full(groups, np.nan)
-    has = counts > 0
-    lo = start[has] + (counts[has] - 1) // 2
-    hi = start[has] + counts[has] // 2
-    out[has] = (v[lo] + v[hi]) / 2
+    start = 0
+    for k, n in enumerate(counts.tolist()):
+        if n:
+            lo, hi = (n - 1) // 2, n // 2
+            part = np.partition(v[start:start + n], (lo, hi))
+            out[k] = (part[lo] + part[hi]) / 2
+        start += n
     return out
 
 
