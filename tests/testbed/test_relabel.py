@@ -126,3 +126,26 @@ def test_a_spec_that_counts_lidar_returns_needs_a_lidar(tmp_path):
     path.write_text(yaml.safe_dump(data))
     with pytest.raises(SpecError, match="labels.min_lidar_points counts LiDAR returns"):
         load_spec(path)
+
+
+def test_relabel_of_a_rescan_counts_the_new_sensors_returns(source, tmp_path):
+    """A rescan's meta holds each actor's returns from its own sensor: a point-count rule applied
+    to it reads those, so a 16-beam scan leaves more objects below the floor than the 64-beam one."""
+    vlp16 = tmp_path / "vlp16"
+    _run("rescan", source, "--out", vlp16, "--lidar", "vlp16", "--workers", 1)
+    rules = ("--min-lidar-points", 20, "--workers", 1)
+    _run("relabel", source, "--out", tmp_path / "r64", *rules)
+    _run("relabel", vlp16, "--out", tmp_path / "r16", *rules)
+    m16 = json.loads((tmp_path / "r16/training/meta/000000.json").read_text())
+    m64 = json.loads((tmp_path / "r64/training/meta/000000.json").read_text())
+    assert m16["lidar"]["preset"] == "vlp16"
+    for a in m16["actors"]:
+        if a["label"] in ("label", "dontcare"):
+            assert (a["label"] == "label") == (a["lidar_points"] >= 20 and a["distance"] <= 80
+                                               and a["visible_share"] >= 0.1
+                                               and a["bbox"][3] - a["bbox"][1] >= 10), a["id"]
+    dontcare = [sum(a["label"] == "dontcare" for a in m["actors"]) for m in (m64, m16)]
+    assert dontcare[1] > dontcare[0]
+    # the scans themselves are the rescan's, linked
+    scan = "training/velodyne/000000.bin"
+    assert (tmp_path / "r16" / scan).read_bytes() == (vlp16 / scan).read_bytes()
