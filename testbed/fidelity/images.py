@@ -89,7 +89,7 @@ def road_surface_stats(acc: Acc, img: np.ndarray, grey: np.ndarray, rect: np.nda
     """Per ROAD_SURFACE_BANDS band, the colour noise and detail (`road_structure`'s) at the pixels
     the scan's road returns project to: `rect` the returns in the rectified frame, `height` their
     heights above the frame's road plane."""
-    road = (np.abs(height) < ROAD_SURFACE_M) & (rect[:, 2] > 1.0)
+    road = (np.abs(height) < ROAD_SURFACE_M) & (rect[:, 2] > 1.0)  # in front of the camera
     uv, _ = calib.rect_to_image(rect[road])
     ground = np.hypot(rect[road, 0], rect[road, 2])
     u, v = np.round(uv[:, 0]).astype(np.int64), np.round(uv[:, 1]).astype(np.int64)
