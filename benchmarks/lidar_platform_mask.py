@@ -54,7 +54,7 @@ def main() -> None:
     counts = np.zeros((len(files), 64))
     for k, f in enumerate(files):
         p = read_velodyne(f)
-        ring, _ = recover_rings(p[:, :3])
+        ring = recover_rings(p[:, :3]).ring
         az = np.degrees(np.arctan2(p[:, 1], p[:, 0])) % 360.0
         b = np.minimum((az / args.bin_deg).astype(int), bins - 1)
         for r in range(64):

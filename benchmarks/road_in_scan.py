@@ -53,16 +53,16 @@ def scan_rows(root: Path, frames: int | None) -> tuple[np.ndarray, np.ndarray]:
         planes.append((np.degrees(np.arctan2(-up[0], up[2])), np.degrees(np.arctan2(-up[1], up[2])),
                        abs(float(height_above(origin, plane)[0])) / np.linalg.norm(plane[:3])))
         h = height_above(rect, plane)
-        ring, _ = recover_rings(v.astype(np.float32), 64)
+        rings = recover_rings(v.astype(np.float32), 64)
+        ring = rings.ring
         bev = np.hypot(v[:, 0], v[:, 1])
-        elevation = np.degrees(np.arctan2(v[:, 2], bev))
         ahead = np.abs(np.degrees(np.arctan2(v[:, 1], v[:, 0]))) < AHEAD_DEG
         ground = np.abs(h) < GROUND_M
         for k in range(64):
             on = ring == k
             if on.sum() < 100:
                 continue
-            e = float(np.median(elevation[on]))
+            e = float(np.degrees(rings.elevation[k]))
             if e >= 0.0:
                 continue
             d = KITTI_LIDAR_HEIGHT / np.tan(np.radians(-e))

@@ -64,7 +64,7 @@ def reduce_frame(job: ReduceJob) -> str:
     pts = read_velodyne(velodyne_path(job.src, job.fid))
     ipath = info_path(job.src, job.fid)
     info = read_scan_info(ipath, len(pts)) if ipath.exists() else None
-    ring = info["ring"] if info is not None else recover_rings(pts, n_in)[0]
+    ring = info["ring"] if info is not None else recover_rings(pts, n_in).ring
     if len(ring) and int(ring.max()) >= n_in:
         raise ValueError(f"{ipath}: ring {int(ring.max())} but the sensor has {n_in} beams")
     mask, new_ring = reduce_rings(ring, n_in, job.beams)

@@ -17,7 +17,11 @@ instead, started from the HDL-64E table.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
+
+from .median import group_medians, median
 
 # The HDL-64E S2 as mounted on the KITTI car (KITTI's only LiDAR): an upper block of 32 lasers
 # from +2.0 deg down in 1/3 deg steps and a lower block of 32 lasers ending at -24.9 deg in about
@@ -63,20 +67,6 @@ def _median_sign(x: np.ndarray) -> float:
     return np.sign(np.median(x))
 
 
-def _median(x: np.ndarray) -> np.floating:
-    """np.median(x) of a non-empty 1-D float array, bit for bit: the mean of its middle order
-    statistics, (a + b) / 2 in x's dtype, from one np.partition. np.median's own overhead was
-    most of the cost of 64 ring medians. A zero (its sign depends on which of 0.0 and -0.0 the
-    partition puts in the middle, and scans hold both) and NaN are left to np.median."""
-    h = len(x) // 2
-    even = len(x) % 2 == 0
-    part = np.partition(x, [h - 1, h, -1] if even else [h, -1])
-    mid = (part[h - 1] + part[h]) / 2 if even else part[h]
-    if mid == 0 or np.isnan(part[-1]):
-        return np.median(x)
-    return mid
-
-
 def rings_from_azimuth_wraps(points: np.ndarray, jitter_deg: float = 0.25,
                              seam: str = "back", az: np.ndarray | None = None) -> np.ndarray:
     """Run index per point: a new run starts wherever the azimuth wraps at the seam (jumps by
@@ -101,9 +91,11 @@ def rings_from_azimuth_wraps(points: np.ndarray, jitter_deg: float = 0.25,
     return runs
 
 
-def rings_from_elevation(points: np.ndarray, beams: int, iterations: int = 30) -> np.ndarray:
-    """1-D k-means on elevation; ring 0 is the highest cluster."""
-    el = np.degrees(elevation(points))
+def rings_from_elevation(points: np.ndarray, beams: int, iterations: int = 30,
+                         el: np.ndarray | None = None) -> np.ndarray:
+    """1-D k-means on elevation (`el`, if given, is elevation(points)); ring 0 is the highest
+    cluster."""
+    el = np.degrees(elevation(points) if el is None else el)
     if beams == len(HDL64E_ELEVATIONS):
         centres = np.asarray(HDL64E_ELEVATIONS, float)[::-1].copy()  # ascending
     else:
@@ -158,21 +150,36 @@ def merge_short_runs(runs: np.ndarray, el: np.ndarray, share: float = 0.05) -> n
     return np.repeat(np.unique(owner, return_inverse=True)[1], size)
 
 
-def recover_rings(points: np.ndarray, beams: int = 64) -> tuple[np.ndarray, str]:
-    """Ring per point (0 = top) of a KITTI-ordered scan, and the method that found it.
+@dataclass(frozen=True)
+class RecoveredRings:
+    """A scan's rings: which ring each return belongs to, and where the rings point."""
+
+    ring: np.ndarray       # (N,) uint8, 0 = top
+    elevation: np.ndarray  # (beams,) each ring's median elevation, radians (NaN: a ring without returns)
+    method: str            # "azimuth-wrap" or "elevation-kmeans"
+
+
+def recover_rings(points: np.ndarray, beams: int = 64, el: np.ndarray | None = None,
+                  az: np.ndarray | None = None) -> RecoveredRings:
+    """Rings of a KITTI-ordered scan (0 = top), their median elevations and the method that
+    found them.
 
     The azimuth is computed once for both seams. The runs come out in scan order (a short run
     joins a neighbour: elevations are finite), so ring k is the slice of the scan between its
     bounds, and its median elevation is taken on that slice instead of on a mask of the whole
-    scan per ring."""
-    el = elevation(points)
-    az = np.arctan2(points[:, 1], points[:, 0])
+    scan per ring. `el` and `az`, if given, are elevation(points) and np.arctan2(y, x): a caller
+    that reads them too (the fidelity report) computes them once."""
+    el = elevation(points) if el is None else el
+    az = np.arctan2(points[:, 1], points[:, 0]) if az is None else az
     for seam in SEAMS if len(points) else ():
         runs = merge_short_runs(rings_from_azimuth_wraps(points, seam=seam, az=az), el)
         if runs.max() + 1 == beams:
             bounds = np.searchsorted(runs, np.arange(beams + 1))
-            med = np.array([_median(el[a:b]) for a, b in zip(bounds[:-1], bounds[1:])])
+            med = np.array([median(el[a:b]) for a, b in zip(bounds[:-1], bounds[1:])])
             rank = np.empty(beams, np.int64)
             rank[np.argsort(-med)] = np.arange(beams)
-            return rank.astype(np.uint8)[runs], "azimuth-wrap"
-    return rings_from_elevation(points, beams).astype(np.uint8), "elevation-kmeans"
+            elevations = np.empty(beams)
+            elevations[rank] = med
+            return RecoveredRings(rank.astype(np.uint8)[runs], elevations, "azimuth-wrap")
+    ring = rings_from_elevation(points, beams, el=el).astype(np.uint8)
+    return RecoveredRings(ring, group_medians(ring, el, beams), "elevation-kmeans")

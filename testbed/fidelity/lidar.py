@@ -46,12 +46,14 @@ def lidar_stats(acc: Acc, scan: np.ndarray, calib: Calibration,
     acc.put("lidar.reflectance_zero", np.count_nonzero(refl == 0) / len(refl))
     acc.hist("lidar.reflectance", refl)
     bev = np.hypot(pts[:, 0], pts[:, 1])  # bird's-eye range
-    _rings(acc, pts, bev)
+    # elevation (kitti.rings.elevation) and azimuth, computed once for the rings and the far field
+    el, az = np.arctan2(pts[:, 2], bev), np.arctan2(pts[:, 1], pts[:, 0])
+    _rings(acc, pts, el, az)
     rect = calib.lidar_to_rect(pts)
     height = height_above(rect, fit_ground_plane(rect))
     ground = np.abs(height) < GROUND_M
     acc.put("lidar.ground_share", np.count_nonzero(ground) / len(pts))
-    _far(acc, pts, r > FAR_M[0], height, refl)
+    _far(acc, az, r > FAR_M[0], height, refl)
     # where the ground share comes from: what stands beside the sensor on each side (LiDAR y left)
     near = bev < NEAR_M
     for side, m in (("left", near & (pts[:, 1] > 0)), ("right", near & (pts[:, 1] < 0))):
@@ -64,16 +66,16 @@ def lidar_stats(acc: Acc, scan: np.ndarray, calib: Calibration,
     return rect, height
 
 
-def _far(acc: Acc, pts: np.ndarray, far: np.ndarray, height: np.ndarray, refl: np.ndarray) -> None:
+def _far(acc: Acc, az: np.ndarray, far: np.ndarray, height: np.ndarray, refl: np.ndarray) -> None:
     """Where the far returns lie: their share of the sweep ahead, beside and behind the sensor
     (SECTOR_DEG), and their median height above the fitted road plane. Alike shares in every
     sector and alike heights say that a surplus of far returns is the view open more often,
     not one kind of surface. And how they read: the median of their nonzero reflectance (a
     sensor that compensates range fully reads far surfaces as near ones; KITTI's read dimmer)."""
-    bearing = np.degrees(np.abs(np.arctan2(pts[:, 1], pts[:, 0])))  # 0 ahead, 180 behind
+    bearing = np.degrees(np.abs(az[far]))  # of the far returns (az: LiDAR azimuth), 0 ahead
     ahead, behind = bearing < SECTOR_DEG, bearing >= 180.0 - SECTOR_DEG
     for name, m in (("ahead", ahead), ("beside", ~ahead & ~behind), ("behind", behind)):
-        acc.put(f"lidar.beyond_40m_{name}", np.count_nonzero(far & m) / len(pts))
+        acc.put(f"lidar.beyond_40m_{name}", np.count_nonzero(m) / len(az))
     if far.any():
         acc.put("lidar.far_height_m", np.median(height[far]))
     lit = refl[far]
@@ -82,34 +84,13 @@ def _far(acc: Acc, pts: np.ndarray, far: np.ndarray, height: np.ndarray, refl: n
         acc.put("lidar.far_reflectance_nonzero", np.median(lit))
 
 
-def _rings(acc: Acc, pts: np.ndarray, bev: np.ndarray) -> None:
-    """Returns and median elevation (degrees) per recovered ring, 0 = top. The elevation is
-    kitti.rings.elevation's, from the bird's-eye range the near field also uses."""
-    ring, method = recover_rings(pts, RINGS)
-    el = np.degrees(np.arctan2(pts[:, 2], bev))
-    counts = np.bincount(ring, minlength=RINGS)[:RINGS]
-    acc.row("lidar.ring_returns", counts)
-    acc.row("lidar.ring_elevation_deg", group_medians(ring, el, RINGS))
-    acc.put("lidar.ring_by_azimuth", method == "azimuth-wrap")
-
-
-def group_medians(group: np.ndarray, values: np.ndarray, groups: int) -> np.ndarray:
-    """np.median of `values` in each group 0..groups-1 (NaN for an empty one): the values sorted
-    into their groups once (a stable radix sort of the small group numbers), then each group's
-    two middle values by partition, averaged as numpy averages them."""
-    keep = (group >= 0) & (group < groups)
-    g = group[keep].astype(np.int16)
-    v = values[keep][np.argsort(g, kind="stable")]
-    counts = np.bincount(g, minlength=groups)
-    out = np.full(groups, np.nan)
-    start = 0
-    for k, n in enumerate(counts.tolist()):
-        if n:
-            lo, hi = (n - 1) // 2, n // 2
-            part = np.partition(v[start:start + n], (lo, hi))
-            out[k] = (part[lo] + part[hi]) / 2
-        start += n
-    return out
+def _rings(acc: Acc, pts: np.ndarray, el: np.ndarray, az: np.ndarray) -> None:
+    """Returns and median elevation (degrees) per recovered ring, 0 = top; `el` and `az` are the
+    returns' elevation and azimuth (radians) as kitti.rings.recover_rings reads them."""
+    rings = recover_rings(pts, RINGS, el=el, az=az)
+    acc.row("lidar.ring_returns", np.bincount(rings.ring, minlength=RINGS)[:RINGS])
+    acc.row("lidar.ring_elevation_deg", np.degrees(rings.elevation))
+    acc.put("lidar.ring_by_azimuth", rings.method == "azimuth-wrap")
 
 
 def _car_points(acc: Acc, rect: np.ndarray, refl: np.ndarray, cars: list[Object3D]) -> None:

@@ -56,9 +56,18 @@ def test_preset_beams_subsamples_like_reduce_beams(hdl64_scan):
 
 
 def test_ring_recovery_from_azimuth_wraps_is_exact(hdl64_scan):
-    ring, method = recover_rings(hdl64_scan.points, 64)
-    assert method == "azimuth-wrap"
-    assert np.array_equal(ring, hdl64_scan.ring)
+    rings = recover_rings(hdl64_scan.points, 64)
+    assert rings.method == "azimuth-wrap"
+    assert np.array_equal(rings.ring, hdl64_scan.ring)
+    _assert_ring_elevations_are_medians(rings, hdl64_scan.points)
+
+
+def _assert_ring_elevations_are_medians(rings, points):
+    """Each ring's elevation is np.median of its returns' elevations, bit for bit."""
+    el = np.arctan2(points[:, 2], np.hypot(points[:, 0], points[:, 1]))
+    want = [np.median(el[rings.ring == k]) if np.any(rings.ring == k) else np.nan
+            for k in range(len(rings.elevation))]
+    np.testing.assert_array_equal(rings.elevation, want)
 
 
 def test_ring_recovery_survives_rings_that_start_past_the_back(hdl64_scan):
@@ -72,8 +81,9 @@ def test_ring_recovery_survives_rings_that_start_past_the_back(hdl64_scan):
         ix = np.flatnonzero(s.ring == ring)
         order.append(np.roll(ix, int(rng.integers(-8, 9))))
     order = np.concatenate(order)
-    ring, method = recover_rings(s.points[order], 64)
-    assert method == "azimuth-wrap"
+    rings = recover_rings(s.points[order], 64)
+    ring = rings.ring
+    assert rings.method == "azimuth-wrap"
     # where two lasers' points meet with no step back in azimuth, only elevation could tell:
     # the few points misplaced there are behind the car (out of the camera's view) and one
     # ring off
@@ -95,9 +105,9 @@ def test_ring_recovery_finds_revolutions_that_start_at_the_front(hdl64_scan):
         order.append(np.roll(ix, -int(front[0] + 1)))
     order = np.concatenate(order)
     assert len(order) == len(s)
-    ring, method = recover_rings(s.points[order], 64)
-    assert method == "azimuth-wrap"
-    assert np.array_equal(ring, s.ring[order])
+    rings = recover_rings(s.points[order], 64)
+    assert rings.method == "azimuth-wrap"
+    assert np.array_equal(rings.ring, s.ring[order])
 
 
 @pytest.mark.skipif(not REAL_KITTI.is_dir(), reason=f"real KITTI dev frames not found at {REAL_KITTI}")
@@ -106,10 +116,11 @@ def test_real_kitti_scans_give_64_rings_from_their_point_order():
     assert len(files) == 11
     for f in files:
         pts = read_velodyne(f)
-        ring, method = recover_rings(pts, 64)
-        assert method == "azimuth-wrap", f
-        el = np.degrees(np.arctan2(pts[:, 2], np.hypot(pts[:, 0], pts[:, 1])))
-        med = np.array([np.median(el[ring == k]) for k in range(64)])
+        rings = recover_rings(pts, 64)
+        ring = rings.ring
+        assert rings.method == "azimuth-wrap", f
+        _assert_ring_elevations_are_medians(rings, pts)
+        med = np.degrees(rings.elevation)
         assert np.all(np.diff(med) < 0), f  # one laser per ring, top to bottom
         assert 1.5 < med[0] < 4.5 and -24.5 < med[-1] < -22.5, f  # the HDL-64E's +2 / -24.9 deg
         assert np.bincount(ring, minlength=64).min() > 500, f
@@ -122,9 +133,10 @@ def test_ring_recovery_falls_back_to_elevation_clustering():
     spec = replace(preset("hdl64e").ideal(), source_offsets_m=())
     s = scan(street_world(8, moving_cars=0), spec, 0)
     perm = np.random.default_rng(0).permutation(len(s))  # order lost: no wraps to find
-    ring, method = recover_rings(s.points[perm], 64)
-    assert method == "elevation-kmeans"
-    assert np.array_equal(ring, s.ring[perm])
+    rings = recover_rings(s.points[perm], 64)
+    assert rings.method == "elevation-kmeans"
+    assert np.array_equal(rings.ring, s.ring[perm])
+    _assert_ring_elevations_are_medians(rings, s.points[perm])
 
 
 def test_side_file_round_trip_and_same_bytes(tmp_path, hdl64_scan):

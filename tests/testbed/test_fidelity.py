@@ -319,7 +319,7 @@ def test_the_look_of_a_near_whole_car_by_hand(real_root):
 
 
 def test_group_medians_are_numpys_median_per_group():
-    from testbed.fidelity.lidar import group_medians
+    from kitti.median import group_medians
 
     rng = np.random.default_rng(0)
     for trial in range(100):
