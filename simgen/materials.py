@@ -86,11 +86,37 @@ SAND = Material("sand", (0.62, 0.52, 0.36), 0.50, incidence_exponent=0.0)
 # --- Vegetation and street furniture. ------------------------------------------------------
 # Bark: 0.25-0.35 at 905 nm (ECOSTRESS library, tree bark); 0.30.
 BARK = Material("bark", (0.12, 0.08, 0.05), 0.30)
-# Crowns and hedges: green leaves reflect 0.45-0.55 on the NIR plateau (PROSPECT; ECOSTRESS
-# library), 0.50 x 2/3 = 0.33 for a leaf volume. Porosity: leaf-on crowns of urban broadleaf
-# trees pass 10-30 % of direct sunlight (crown transmissivity, Heisler 1986, Urban Ecology 9);
-# a beam crosses a crown's closed mesh twice, so 0.45 per crossing passes 0.45^2 = 0.2 of them.
-FOLIAGE = Material("foliage", (0.08, 0.20, 0.06), 0.33, incidence_exponent=0.0, porosity=0.45)
+# A green leaf in the camera's channels (R, G, B): its reflectance; it passes about half as much
+# as it reflects (broadleaf trees' leaves in the Community Land Model: visible reflectance 0.10 and
+# transmittance 0.05, near infrared 0.45 and 0.25; Oleson et al. 2013, CLM 4.5 technical note,
+# table 3.1).
+LEAF = (0.08, 0.20, 0.06)
+LEAF_TRANSMITTANCE_RATIO = 0.5
+
+
+def canopy_reflectance(leaf, transmittance_ratio: float = LEAF_TRANSMITTANCE_RATIO) -> tuple[float, ...]:
+    """What the camera sees of a closed crown, hedge or shrub mass of leaves of reflectance `leaf`
+    (per channel): the reflectance of a deep layer of leaves that each scatter w = rho (1 + tau /
+    rho) of the light they meet, (1 - sqrt(1 - w)) / (1 + sqrt(1 - w)) (the two-stream albedo of a
+    semi-infinite layer of isotropic scatterers; Sellers 1985, Int. J. Remote Sensing 6). Light
+    that enters a crown meets leaf after leaf, and in the visible each keeps little of it: CLM's
+    leaves give 0.04 in the visible and 0.29 in the near infrared, the few per cent and about 0.3
+    measured above broadleaf forests in summer. A leaf seen alone would be two to three times
+    brighter. (The LiDAR reads the first leaf its own beam lights, with no shade between: `FOLIAGE`'s
+    reflectivity stays the leaf's.)"""
+    out = []
+    for rho in leaf:
+        k = (1.0 - rho * (1.0 + transmittance_ratio)) ** 0.5
+        out.append(round((1.0 - k) / (1.0 + k), 4))
+    return tuple(out)
+
+
+# Crowns and hedges: to the camera, a canopy of LEAF (above); to the LiDAR, green leaves reflect
+# 0.45-0.55 on the NIR plateau (PROSPECT; ECOSTRESS library), 0.50 x 2/3 = 0.33 for a leaf
+# volume. Porosity: leaf-on crowns of urban broadleaf trees pass 10-30 % of direct sunlight (crown
+# transmissivity, Heisler 1986, Urban Ecology 9); a beam crosses a crown's closed mesh twice, so
+# 0.45 per crossing passes 0.45^2 = 0.2 of them.
+FOLIAGE = Material("foliage", canopy_reflectance(LEAF), 0.33, incidence_exponent=0.0, porosity=0.45)
 # Belts of shrubs (simgen.scenery._green): the same leaves, drawn as one closed mass. Their
 # overlapping shrubs' shells would have a beam cross a leaf surface about every metre inside the
 # belt (0.45 passing each time: 0.09 of the beams left after 3 m), each crossing one more Embree

@@ -207,8 +207,8 @@ class CameraSpec(Strict):
     # with bayer: the array on KITTI's raw camera pixels (its lens distortion and finer pitch),
     # then rectified back to the output's pixels as KITTI's frames were (simgen.camera)
     rectified: bool = True
-    # The output curve: 1.2 is KITTI-like (simgen.camera.KEY), 2.2 sRGB-like, 1 linear.
-    gamma: factor(float, 1.0, 3.0) = 1.2
+    # The output curve: 1.4 is KITTI-like (simgen.camera.KEY), 2.2 sRGB-like, 1 linear.
+    gamma: factor(float, 1.0, 3.0) = 1.4
 
 
 class WeatherSpec(Strict):

@@ -126,7 +126,7 @@ class CameraResponse:
     # the colour filter array on KITTI's raw pixels (distorted, finer), then rectified back
     # (bilinear) as KITTI's frames are; False: on the output's own pixels (simgen.camera)
     rectified: bool = True
-    gamma: float = 1.2  # output curve, value = signal ** (1 / gamma); KITTI-like (camera.KEY)
+    gamma: float = 1.4  # output curve, value = signal ** (1 / gamma); KITTI-like (camera.KEY)
 
 
 @dataclass
