@@ -75,10 +75,10 @@ CROSSTALK = 0.15
 # KITTI's colour balance, from the same whole-set statistic: its channel means 93.8 / 98.8 / 95.9
 # put green above blue above red (G / R 1.053, B / R 1.022), a blue-green cast. Gains on the raw
 # channels (R, G, B) after the colour filters and the noise, as a camera's white balance acts,
-# none below 1 (what saturates the sensor comes out white, as in KITTI's frames). These give generated urban frames the set's two ratios (`benchmarks/
-# tone_curve.py --frames 120 --balance`, scenes/urban.yaml: channel means 93.6 / 95.9 / 92.2 with no
-# gains, 91.6 / 96.4 / 93.6 with these, at the key 0.165; the level is the key's); no real frame
-# is read.
+# none below 1 (what saturates the sensor comes out white, as in KITTI's frames). These give
+# generated urban frames the set's two ratios (`benchmarks/tone_curve.py --frames 120 --balance`,
+# scenes/urban.yaml: channel means 93.6 / 95.9 / 92.2 with no gains, 91.6 / 96.4 / 93.6 with these,
+# at the key 0.165; the level is the key's); no real frame is read.
 BALANCE = (1.0, 1.0516, 1.0751)
 LOG_FLOOR = 1e-4  # keeps black pixels out of the log average (Reinhard's delta)
 # An auto-exposure's range of gain and shutter, as factors of the reference exposure. The Flea2's

@@ -107,7 +107,7 @@ def canopy_reflectance(leaf, transmittance_ratio: float = LEAF_TRANSMITTANCE_RAT
     out = []
     for rho in leaf:
         k = (1.0 - rho * (1.0 + transmittance_ratio)) ** 0.5
-        out.append(round((1.0 - k) / (1.0 + k), 4))
+        out.append(round((1.0 - k) / (1.0 + k), 4))  # to four places, as the table writes colours
     return tuple(out)
 
 

@@ -41,3 +41,19 @@ def test_fractal_noise_is_periodic_zero_mean_unit_sd():
 def test_an_unknown_kind_is_named():
     with pytest.raises(KeyError, match="no texture kind 'tarmac'"):
         textures.tile("tarmac", 0)
+
+
+def test_a_crown_shows_the_camera_a_canopys_reflectance_and_the_lidar_a_leafs():
+    """Two-stream albedo of a deep layer of leaves, by hand: the Community Land Model's broadleaf
+    leaves (visible reflectance 0.10, transmittance 0.05: w = 0.15; near infrared 0.45 and 0.25:
+    w = 0.70) give (1 - sqrt(0.85)) / (1 + sqrt(0.85)) = 0.0406 and (1 - sqrt(0.3)) / (1 +
+    sqrt(0.3)) = 0.2922."""
+    from simgen.materials import FOLIAGE, LEAF, SHRUB_MASS, canopy_reflectance
+
+    assert canopy_reflectance((0.10,)) == (0.0406,)
+    assert canopy_reflectance((0.45,), transmittance_ratio=0.25 / 0.45) == (0.2922,)
+    assert FOLIAGE.color == SHRUB_MASS.color == canopy_reflectance(LEAF)
+    # darker than a leaf in every channel, the green leading by more (multiple scattering)
+    assert all(c < 0.45 * leaf for c, leaf in zip(FOLIAGE.color, LEAF))
+    assert FOLIAGE.color[1] / FOLIAGE.color[0] > LEAF[1] / LEAF[0]
+    assert FOLIAGE.reflectivity == 0.33  # the LiDAR reads the first leaf its beam lights
