@@ -67,10 +67,11 @@ def main() -> None:
         calib, meta = ds.calib(fid), read_json(ds.path("meta", fid, "json"))
         speed = float(np.hypot(*meta["ego_velocity"][:2]))
         blurred = motion_blurred(img, depth, calib.P2, speed, args.shutter_ms / 1000.0)
-        for acc, im in ((before, img), (after, blurred)):
-            acc.frames.append(fid)
-            road = lidar_stats(acc, ds.velodyne(fid), calib, None)
-            if road is not None:
+        before.frames.append(fid)
+        after.frames.append(fid)
+        road = lidar_stats(before, ds.velodyne(fid), calib, None)  # the scan's road, read once
+        if road is not None:
+            for acc, im in ((before, img), (after, blurred)):
                 road_surface_stats(acc, im, cv2.cvtColor(im, cv2.COLOR_BGR2GRAY), *road, calib)
         below = calib.P2[1, 1] * CAMERA_HEIGHT_M / 7.0  # rows below the horizon of the road 7 m ahead
         blur_px.append(speed * args.shutter_ms / 1000.0 * below / 7.0)
