@@ -35,10 +35,19 @@ SIZE_STATS: dict[str, tuple[tuple[float, float, float], tuple[float, float, floa
 # Lower bounds keep every drawn size physically buildable (a 2.5-sd draw can go below them).
 _SIZE_MIN = {"Pedestrian": (1.2, 0.35, 0.3), "Cyclist": (1.3, 0.35, 1.2)}
 
-# Common car paint colours (linear RGB) and their shares on the road.
+# Vehicle paint colours (linear RGB): white, black, silver, dark grey, blue, red, green, beige.
 _PAINTS = np.array([[0.85, 0.85, 0.85], [0.03, 0.03, 0.03], [0.45, 0.46, 0.48], [0.20, 0.21, 0.22],
                     [0.05, 0.12, 0.40], [0.55, 0.04, 0.03], [0.05, 0.20, 0.08], [0.55, 0.45, 0.30]])
+# Vans and trucks: shares on today's roads (no survey at hand for commercial vehicles).
 _PAINT_SHARE = np.array([0.24, 0.20, 0.16, 0.14, 0.09, 0.09, 0.04, 0.04])
+# Cars: the German passenger-car mix KITTI drove among in Karlsruhe in 2011, when white was still
+# rare. The Kraftfahrt-Bundesamt's annual report for 2006 (new registrations, as reported by dpa):
+# grey and silver 42.2 %, black 27.8 %, blue 16.3 %, white 1.6 %, the other colours 12.1 %; 2006
+# lies near the median registration year of a fleet about 8 years old in 2011, and white reached
+# only one new car in ten by 2010 (KBA, via SP-X). Grey and silver split as silver 16 : dark grey
+# 14, and the other colours as red 9 : green 4 : beige 4, both as in the vans' shares above.
+_CAR_PAINT_SHARE = np.array([0.016, 0.278, 0.422 * 16 / 30, 0.422 * 14 / 30, 0.163,
+                             0.121 * 9 / 17, 0.121 * 4 / 17, 0.121 * 4 / 17])
 _CLOTHES = np.array([[0.05, 0.05, 0.08], [0.10, 0.15, 0.35], [0.45, 0.05, 0.05], [0.35, 0.35, 0.35],
                      [0.60, 0.55, 0.45], [0.08, 0.25, 0.10], [0.70, 0.70, 0.70]])
 _SKIN = np.array([[0.80, 0.60, 0.48], [0.55, 0.38, 0.27], [0.30, 0.19, 0.13]])
@@ -308,7 +317,8 @@ def sample_recipe(cls: str, rng: np.random.Generator) -> dict:
     if cls in ("Pedestrian", "Cyclist"):
         color = _CLOTHES[rng.integers(len(_CLOTHES))]
     else:
-        color = _PAINTS[rng.choice(len(_PAINTS), p=_PAINT_SHARE / _PAINT_SHARE.sum())]
+        share = _CAR_PAINT_SHARE if cls == "Car" else _PAINT_SHARE
+        color = _PAINTS[rng.choice(len(_PAINTS), p=share / share.sum())]
     color = np.clip(color * rng.uniform(0.85, 1.15), 0.0, 1.0)
     return {"kind": cls.lower(), "dims": [h, w, l], "color": [round(float(c), 4) for c in color],
             "seed": int(rng.integers(2**31))}

@@ -120,6 +120,19 @@ def test_size_distribution_is_close_to_kitti(cls):
     assert np.all(dims.std(axis=0) < 1.2 * sd) and np.all(dims.std(axis=0) > 0.5 * sd)
 
 
+@pytest.mark.parametrize("cls, white, black, blue", [("Car", 0.016, 0.278, 0.163), ("Van", 0.24, 0.20, 0.09)])
+def test_paint_shares(cls, white, black, blue):
+    """Cars wear the KBA's 2006 passenger-car mix (white 1.6 %, black 27.8 %, blue 16.3 %), vans
+    the palette's other shares; each palette colour is told apart after its +-15 % brightness draw
+    (white's channels >= 0.72, black's <= 0.035, blue the only one with blue over twice green)."""
+    rng = np.random.default_rng(3)
+    n = 4000
+    c = np.array([sample_recipe(cls, rng)["color"] for _ in range(n)])
+    for share, hit in ((white, c.min(axis=1) >= 0.72), (black, c.max(axis=1) <= 0.035),
+                       (blue, c[:, 2] > 2 * c[:, 1])):
+        assert abs(hit.mean() - share) <= 4 * np.sqrt(share * (1 - share) / n), (hit.mean(), share)
+
+
 def test_user_mesh_is_scaled_to_its_target_size(tmp_path):
     path = tmp_path / "blob.ply"
     m = trimesh.creation.icosphere(subdivisions=2, radius=1.0)
