@@ -43,8 +43,9 @@ _PAINT_SHARE = np.array([0.24, 0.20, 0.16, 0.14, 0.09, 0.09, 0.04, 0.04])
 # Cars: the German passenger-car mix KITTI drove among in Karlsruhe in 2011, when white was still
 # rare. The Kraftfahrt-Bundesamt's annual report for 2006 (new registrations, as reported by dpa):
 # grey and silver 42.2 %, black 27.8 %, blue 16.3 %, white 1.6 %, the other colours 12.1 %; 2006
-# lies near the median registration year of a fleet about 8 years old in 2011, and white reached
-# only one new car in ten by 2010 (KBA, via SP-X). Grey and silver split as silver 16 : dark grey
+# lies near the median registration year of a fleet about 8 years old in 2011 (KBA: a passenger
+# car's mean age 8.1 years at the start of 2010, 8.5 at the start of 2012), and white reached only
+# one new car in ten by 2010 (KBA, via SP-X). Grey and silver split as silver 16 : dark grey
 # 14, and the other colours as red 9 : green 4 : beige 4, both as in the vans' shares above.
 _CAR_PAINT_SHARE = np.array([0.016, 0.278, 0.422 * 16 / 30, 0.422 * 14 / 30, 0.163,
                              0.121 * 9 / 17, 0.121 * 4 / 17, 0.121 * 4 / 17])
