@@ -6,7 +6,7 @@ a few tenths, so a shortfall inside the paired interval is not a measured loss.
 
     .venv/bin/python benchmarks/detector_paired.py --gt data/s52/urban_val/training/label_2 \\
         --split data/s52/urban_val/ImageSets/trainval.txt \\
-        --pred stage18=runs/s53/pred_stage18_urban_val --pred W_C=runs/s53/pred_W_C_urban_val [--draws 1000]
+        --pred stage18=runs/s52/pred_stage18_urban_val --pred W_C=runs/s53/pred_W_C_urban_val [--draws 1000]
 """
 
 from __future__ import annotations
@@ -21,22 +21,22 @@ from kitti.splits import read_split
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--gt", type=Path, required=True, help="label_2 folder with the truth")
-    ap.add_argument("--split", type=Path, required=True, help="ImageSets file of the frames")
-    ap.add_argument("--pred", action="append", required=True, metavar="NAME=DIR",
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--gt", type=Path, required=True, help="label_2 folder with the truth")
+    parser.add_argument("--split", type=Path, required=True, help="ImageSets file of the frames")
+    parser.add_argument("--pred", action="append", required=True, metavar="NAME=DIR",
                     help="a run's result folder; the first is the one the others are paired with")
-    ap.add_argument("--classes", default="Car,Pedestrian,Cyclist")
-    ap.add_argument("--draws", type=int, default=DRAWS)
-    args = ap.parse_args()
+    parser.add_argument("--classes", default="Car,Pedestrian,Cyclist")
+    parser.add_argument("--draws", type=int, default=DRAWS)
+    args = parser.parse_args()
     if not args.split.is_file():
         raise SystemExit(f"--split {args.split}: no such file")
     ids = read_split(args.split)
     runs = {}
     for item in args.pred:
         name, sep, folder = item.partition("=")
-        if not sep or not Path(folder).is_dir():
-            raise SystemExit(f"--pred {item!r}: expected NAME=DIR with DIR a result folder")
+        if not sep or not Path(folder).is_dir() or name in runs:
+            raise SystemExit(f"--pred {item!r}: expected NAME=DIR, a new NAME and DIR a result folder")
         runs[name] = load_annotations(folder, ids, missing_ok=True)
     gt = load_annotations(args.gt, ids)
     classes = args.classes.split(",")
