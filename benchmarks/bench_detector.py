@@ -34,7 +34,7 @@ def time_inference(det: Detector, runs: int, img: np.ndarray) -> dict[str, float
     with torch.no_grad():
         for _ in range(runs):
             t0 = time.perf_counter()
-            raw = det.model.predict_raw(x)
+            raw = det.models[0].predict_raw(x)
             net.append(time.perf_counter() - t0)
             postprocess(raw)
             for d, acc in ((det, mirrored), (single, once)):
@@ -83,9 +83,9 @@ def main() -> None:
     if img.shape[:2] != (375, 1242):
         raise SystemExit(f"{src} is {img.shape[1]}x{img.shape[0]}, not 1242x375")
     t = time_inference(det, a.runs, img)
-    print(f"weights {a.weights}: {count_parameters(det.model) / 1e6:.2f} M parameters (BN folded), "
+    print(f"weights {a.weights}: {sum(map(count_parameters, det.models)) / 1e6:.2f} M parameters (BN folded), "
           f"input {w}x{h}, {a.threads} thread(s), median of {a.runs}, image: {src}")
-    print(f"  network forward:                    {t['network_ms']:.1f} ms per 1242x375 image")
+    print(f"  network forward (one of {len(det.models)}):           {t['network_ms']:.1f} ms per 1242x375 image")
     print(f"  letterbox + network + NMS + mapping, the image and its mirror: {t['end_to_end_ms']:.1f} ms "
           "per 1242x375 image")
     print(f"  the same, one pass (--no-mirror):   {t['one_pass_ms']:.1f} ms per 1242x375 image")

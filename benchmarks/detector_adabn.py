@@ -68,11 +68,11 @@ def main() -> None:
     out.mkdir(parents=True, exist_ok=True)
     if args.stats == "set":
         model = adapted(ck, (network_input(ds.image(f), size) for f in tqdm(ids, desc="statistics")))
-        det = Detector(model, size, classes, mirror=True)
+        det = Detector((model,), size, classes, mirror=True)
     for fid in tqdm(ids, desc="detect"):
         image = ds.image(fid)
         if args.stats == "image":
-            det = Detector(adapted(ck, [network_input(image, size)]), size, classes, mirror=True)
+            det = Detector((adapted(ck, [network_input(image, size)]),), size, classes, mirror=True)
         write_label(out / f"{fid}.txt", det.to_objects(det.detect([image])[0]))
 
 

@@ -50,6 +50,11 @@ contrast, gamma, greyscale) -> compression (JPEG). No op changes geometry: boxes
   texture and colour do not, so a detector cannot lean on the renderer's materials. The result is
   given the input's per-channel mean and SD again (the paper feeds the standardised output to its
   network; ours reads 8-bit images). It runs first, on the scene, before the camera ops.
+  `randconv_keep_below` (KITTI pixels; 0, off, by default): boxes lower than it keep their own
+  pixels (widened by a quarter each side, edges feathered), and so do two same-sized decoy patches
+  a box at random places, so an unconvolved patch does not mark a small object. Every RandConv run
+  lost the generator's 25-40 px Cars (stops 46-53, `results/detector.md`): a random 5 or 7 px
+  kernel scrambles an object a few dozen pixels tall, where a near car keeps its shape.
   The paper's full method also trains on pairs: `Augmenter.pair` gives one sample without and with
   a random convolution, every other draw shared, for the consistency term that
   `TrainConfig.randconv_consistency` weighs (detector/loss.py).
@@ -64,6 +69,7 @@ come from child seeds), so turning one op on or off does not change what the oth
 from __future__ import annotations
 
 import functools
+import itertools
 import math
 from dataclasses import dataclass, replace
 from statistics import NormalDist
@@ -114,6 +120,7 @@ class AugmentConfig:
     cutout_max_cover: float = 0.5  # no labelled box more than this share covered (all rectangles together)
     randconv_prob: float = 0.0   # RandConv-mix texture randomisation (module docstring); off: recipes before it
     randconv_kernels: tuple[int, ...] = (1, 3, 5, 7)  # kernel sizes drawn uniformly (the paper's multi-scale set)
+    randconv_keep_below: float = 0.0  # KITTI px: lower boxes keep their pixels (module docstring); 0: off
 
     def __post_init__(self):
         if self.mixup not in MIXUP_MODES:
@@ -141,6 +148,8 @@ class AugmentConfig:
             raise ValueError("augmentation jpeg_quality must be within [1, 100] and cutout_size within (0, 1]")
         if self.cutout_count < 1:
             raise ValueError(f"augmentation cutout_count must be at least 1, got {self.cutout_count}")
+        if self.randconv_keep_below < 0:
+            raise ValueError(f"augmentation randconv_keep_below must be >= 0, got {self.randconv_keep_below}")
         if not self.randconv_kernels or any(int(k) != k or k < 1 or k % 2 == 0 for k in self.randconv_kernels):
             raise ValueError(f"augmentation randconv_kernels must be odd sizes >= 1, "
                              f"got {self.randconv_kernels}")
@@ -346,6 +355,7 @@ class Photometric:
     jpeg_quality: int = 0                     # 0: no re-encode
     cutout: int = 0                           # number of rectangles to place
     randconv: tuple[int, float] = (0, 0.0)    # kernel size, weight of the input in the mix; size 0: none
+    randconv_keep_below: float = 0.0          # working pixels: boxes lower than this keep their pixels
     seed: int = 0                             # of the noise, cut-out and random-kernel realisations
 
 
@@ -381,7 +391,8 @@ def draw_photometric(cfg: AugmentConfig, rng: np.random.Generator, px_scale: flo
                        motion=(length, angle) if on[5] else (0.0, 0.0),
                        noise=(full_well, read) if on[6] else (0.0, 0.0), jpeg_quality=quality if on[7] else 0,
                        cutout=count if on[8] else 0,
-                       randconv=randconv if r[0] < cfg.randconv_prob else (0, 0.0), seed=seed)
+                       randconv=randconv if r[0] < cfg.randconv_prob else (0, 0.0),
+                       randconv_keep_below=cfg.randconv_keep_below * px_scale, seed=seed)
 
 
 def apply_photometric(img: np.ndarray, boxes: np.ndarray, p: Photometric, cfg: AugmentConfig) -> np.ndarray:
@@ -389,7 +400,12 @@ def apply_photometric(img: np.ndarray, boxes: np.ndarray, p: Photometric, cfg: A
     greyscale, JPEG); RGB uint8 in and out, the input untouched; boxes only limit the cut-out (they
     are not changed)."""
     if p.randconv[0]:
-        img = random_convolution(img, p.randconv[0], p.randconv[1], np.random.default_rng([p.seed, 3]))
+        conv = random_convolution(img, p.randconv[0], p.randconv[1], np.random.default_rng([p.seed, 3]))
+        if p.randconv_keep_below > 0:
+            keep = kept_regions(img.shape[:2], boxes, p.randconv_keep_below,
+                                np.random.default_rng([p.seed, 4]))
+            conv = np.rint(keep[..., None] * img + (1 - keep[..., None]) * conv).astype(np.uint8)
+        img = conv
     if p.cutout:
         img = cutout(img, boxes, p.cutout, cfg.cutout_size, cfg.cutout_max_cover,
                      np.random.default_rng([p.seed, 0]))
@@ -423,6 +439,28 @@ def random_convolution(img: np.ndarray, k: int, keep: float, rng: np.random.Gene
     y = keep * x + (1 - keep) * out
     y = (y - y.mean(axis=(0, 1))) / (y.std(axis=(0, 1)) + 1e-6) * sd + mean
     return np.clip(np.rint(y), 0, 255).astype(np.uint8)
+
+
+def kept_regions(shape: tuple[int, int], boxes: np.ndarray, below: float, rng: np.random.Generator,
+                 decoys: int = 2) -> np.ndarray:
+    """Weights in [0, 1] (H, W) of the input against its random convolution: 1 on each box lower
+    than `below` and on `decoys` rectangles of its size at random places, so an unconvolved patch
+    does not tell where a small object is; round each, a quarter of its size more fading out over
+    about 2 px (so the box's outline against the scene stays the renderer's too)."""
+    h, w = shape
+    core, wide = np.zeros((h, w), np.float32), np.zeros((h, w), np.float32)
+    for x1, y1, x2, y2 in boxes[(boxes[:, 3] - boxes[:, 1]) < below] if len(boxes) else []:
+        bw, bh = x2 - x1, y2 - y1
+        centres = [((x1 + x2) / 2, (y1 + y2) / 2)]
+        centres += [(rng.uniform(0, w), rng.uniform(0, h)) for _ in range(decoys)]
+        for (u, v), (mask, grow) in itertools.product(centres, ((core, 1.0), (wide, 1.5))):
+            a, b = int(max(round(u - grow * bw / 2), 0)), int(min(round(u + grow * bw / 2), w))
+            c, d = int(max(round(v - grow * bh / 2), 0)), int(min(round(v + grow * bh / 2), h))
+            mask[c:d, a:b] = 1.0
+    if not core.any():
+        return core
+    faded = cv2.GaussianBlur(wide, (0, 0), 2.0, borderType=cv2.BORDER_REFLECT_101)
+    return np.maximum(core, np.clip(faded, 0, 1))
 
 
 def tone(img: np.ndarray, gain, contrast: float, gamma: float) -> np.ndarray:

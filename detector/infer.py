@@ -29,30 +29,70 @@ def save_checkpoint(path: Path, model: FlexiNet, input_size: tuple[int, int], ex
         torch.save(state, tmp)
 
 
+def checkpoint_members(ck: dict, path: Path) -> list[dict]:
+    """The single-network checkpoints a file holds: itself, or an ensemble's members, checked to
+    read the same input size and classes (so their candidates line up view by view)."""
+    members = ck.get("members", [ck]) if isinstance(ck, dict) else None
+    if not members:
+        raise ValueError(f"{path}: not a FlexiNet checkpoint")
+    for i, m in enumerate(members):
+        what = f"{path}" if len(members) == 1 else f"{path}: ensemble member {i}"
+        for key in ("model_cfg", "input_size", "classes", "model"):
+            if key not in m:
+                raise ValueError(f"{what}: not a FlexiNet checkpoint (missing {key!r})")
+        first = members[0]
+        if m["input_size"] != first["input_size"] or m["classes"] != first["classes"]:
+            raise ValueError(f"{what}: another input size or class list than member 0")
+    return members
+
+
+def save_ensemble(path: Path, weights: list[Path]) -> None:
+    """One checkpoint holding several single-network checkpoints, read together by `Detector`."""
+    members = []
+    for w in weights:
+        ck = torch.load(w, map_location="cpu", weights_only=True)
+        if isinstance(ck, dict) and "members" in ck:
+            raise ValueError(f"{w}: already an ensemble; give its members")
+        members += checkpoint_members(ck, Path(w))
+    if len(members) < 2:
+        raise ValueError("an ensemble needs at least two weight files")
+    checkpoint_members({"members": members}, Path(path))
+    with atomic_path(Path(path)) as tmp:
+        torch.save({"members": members, "ensemble_of": [Path(w).name for w in weights]}, tmp)
+
+
 @dataclass
 class Detector:
     """`mirror`: each image is also read mirrored (left-right), both reads' candidates go through
     one NMS and each box is scored by the mean of the two reads (`detector.nms.postprocess`;
     test-time augmentation: the network was trained on mirrored images half the time). It doubles
-    the network's work; `results/detector.md` gives what it buys."""
-    model: FlexiNet
+    the network's work; `results/detector.md` gives what it buys.
+
+    `models`: one network, or several read together (an output-space ensemble, a checkpoint made by
+    `save_ensemble`): every network's reads are views like the mirrored one, so a box is scored by
+    the mean over networks and reads, and what one network alone fires on ranks below what all see.
+    Each network adds its full cost."""
+    models: tuple[FlexiNet, ...]
     input_size: tuple[int, int]  # network input (w, h)
     classes: tuple[str, ...]
     mirror: bool = True
+
+    @property
+    def views(self) -> int:
+        return len(self.models) * (2 if self.mirror else 1)
 
     @staticmethod
     def load(weights: str | Path | None = None, mirror: bool = True) -> "Detector":
         path = Path(weights) if weights else DEFAULT_WEIGHTS
         if not path.is_file():
             raise FileNotFoundError(f"detector weights not found: {path}")
-        ck = torch.load(path, map_location="cpu", weights_only=True)
-        for key in ("model_cfg", "input_size", "classes", "model"):
-            if key not in ck:
-                raise ValueError(f"{path}: not a FlexiNet checkpoint (missing {key!r})")
-        model = FlexiNet(ModelConfig.from_dict(ck["model_cfg"]))
-        model.load_state_dict(ck["model"])
-        model.eval().fuse()
-        return Detector(model, tuple(ck["input_size"]), tuple(ck["classes"]), mirror)
+        members = checkpoint_members(torch.load(path, map_location="cpu", weights_only=True), path)
+        models = []
+        for ck in members:
+            model = FlexiNet(ModelConfig.from_dict(ck["model_cfg"]))
+            model.load_state_dict(ck["model"])
+            models.append(model.eval().fuse())
+        return Detector(tuple(models), tuple(members[0]["input_size"]), tuple(members[0]["classes"]), mirror)
 
     @torch.no_grad()
     def detect(self, images: list[np.ndarray], conf_threshold: float = 0.01, iou_threshold: float = 0.6,
@@ -64,7 +104,7 @@ class Detector:
         x = torch.from_numpy(np.stack([lb.apply(im) for lb, im in zip(boxes, images)]))
         x = x.permute(0, 3, 1, 2).float().div_(255)
         dets = postprocess(self._raw(x), conf_threshold, iou_threshold, max_det,
-                           views=2 if self.mirror else 1)
+                           views=self.views)
         out = []
         for lb, d in zip(boxes, dets):
             d = d.double().numpy()
@@ -74,15 +114,20 @@ class Detector:
         return out
 
     def _raw(self, x: torch.Tensor) -> torch.Tensor:
-        """Decoded candidates (B, N, 5 + nc) in input pixels; with `mirror`, (B, 2N, 5 + nc): the
-        mirrored pass's boxes mapped back (centre x -> input width - x)."""
-        if not self.mirror:
-            return self.model.predict_raw(x)
-        raw = self.model.predict_raw(torch.cat([x, x.flip(-1)]))
+        """Decoded candidates (B, views x N, 5 + nc) in input pixels, one block of N per view: per
+        network its plain read and, with `mirror`, its mirrored read with the boxes mapped back
+        (centre x -> input width - x)."""
         n = len(x)
-        back = raw[n:].clone()
-        back[..., 0] = self.input_size[0] - back[..., 0]
-        return torch.cat([raw[:n], back], 1)
+        xs = torch.cat([x, x.flip(-1)]) if self.mirror else x
+        blocks = []
+        for model in self.models:
+            raw = model.predict_raw(xs)
+            blocks.append(raw[:n])
+            if self.mirror:
+                back = raw[n:].clone()
+                back[..., 0] = self.input_size[0] - back[..., 0]
+                blocks.append(back)
+        return torch.cat(blocks, 1)
 
     def to_objects(self, det: np.ndarray) -> list[Object3D]:
         """KITTI result rows: type, 2D box and score; the unknown 3D fields are the format's

@@ -162,7 +162,7 @@ def evaluate_model(model: FlexiNet, input_size: tuple[int, int], root: str, spli
     image read once (as training runs logged it before `testbed detect` read images mirrored too:
     a documented run still writes the same history)."""
     from kitti.eval import evaluate
-    det = Detector(model.eval(), input_size, CLASSES, mirror=False)
+    det = Detector((model.eval(),), input_size, CLASSES, mirror=False)
     ds = KittiDataset(root)
     ids = ds.ids(split)
     gt, dt = {}, {}
@@ -184,6 +184,8 @@ def _checkpoints(cfg: TrainConfig, ck_path: Path,
     network input size comes with either, since the weights only fit that size."""
     ck = torch.load(ck_path, map_location="cpu", weights_only=True) if resume and ck_path.is_file() else None
     init = torch.load(cfg.init, map_location="cpu", weights_only=True) if cfg.init and ck is None else None
+    if isinstance(init, dict) and "members" in init:
+        raise ValueError(f"{cfg.init}: an ensemble of {len(init['members'])} networks; start from one of them")
     if ck is not None:
         cfg = replace(cfg, img_size=tuple(ck["input_size"]))
     elif init is not None and cfg.img_size is None:

@@ -57,6 +57,10 @@ def _split(value: str) -> str | None:
               default=(1, 3, 5, 7), show_default=True,
               help="RandConv kernel sizes drawn uniformly (odd; repeat the option: --randconv-kernel 1 "
                    "--randconv-kernel 3).")
+@click.option("--randconv-keep-below", default=0.0, show_default=True, type=click.FloatRange(0),
+              help="Boxes lower than this (pixels of a 1242-wide KITTI frame) keep their own pixels under "
+                   "a random convolution, as do as many same-sized decoy patches (detector/augment.py); "
+                   "0: the whole image is convolved.")
 @click.option("--randconv-consistency", default=0.0, show_default=True, type=click.FloatRange(0),
               help="Weight of RandConv's consistency term; > 0 builds each batch of --batch images from "
                    "--batch/2 samples, each seen without and with a random convolution, and adds this "
@@ -89,7 +93,8 @@ def train_detector(data: tuple[Path, ...], out: Path, preset: str, epochs: int, 
                    activation: str, box_loss: str, mosaic: float, scale: float, fliplr: float, hsv: bool,
                    photometric: bool, wb_gain: float, blur_sigma: tuple[float, float], noise_prob: float,
                    noise_full_well: tuple[float, float], jpeg_prob: float, cutout_prob: float,
-                   randconv_prob: float, randconv_kernels: tuple[int, ...], randconv_consistency: float,
+                   randconv_prob: float, randconv_kernels: tuple[int, ...], randconv_keep_below: float,
+                   randconv_consistency: float,
                    randconv_consistency_target: str, mixup: str,
                    mixup_prob: float, mixup_iou: float, close_mosaic: int, train_split: str,
                    val_data: Path | None, val_split: str, eval_every: int, init_weights: Path | None,
@@ -106,7 +111,7 @@ def train_detector(data: tuple[Path, ...], out: Path, preset: str, epochs: int, 
                             photometric=photometric, gain=wb_gain, blur_sigma=tuple(blur_sigma),
                             noise_prob=noise_prob, noise_full_well=tuple(noise_full_well),
                             jpeg_prob=jpeg_prob, cutout_prob=cutout_prob, randconv_prob=randconv_prob,
-                            randconv_kernels=tuple(randconv_kernels),
+                            randconv_kernels=tuple(randconv_kernels), randconv_keep_below=randconv_keep_below,
                             mixup=mixup, mixup_prob=mixup_prob, mixup_iou=mixup_iou)
         cfg = TrainConfig(data=tuple(str(d) for d in data), out=str(out), preset=preset, epochs=epochs,
                           img_size=tuple(img_size) if img_size else None, batch=batch, lr=lr,

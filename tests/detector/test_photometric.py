@@ -15,6 +15,7 @@ from detector.augment import (
     cutout,
     draw_photometric,
     jpeg,
+    kept_regions,
     motion_kernel,
     random_convolution,
     sensor_noise,
@@ -351,14 +352,15 @@ def test_cli_wires_the_photometric_options_into_the_saved_config(tmp_path):
             "--img-size", "128", "64", "--batch", "4", "--eval-every", "0", "--threads", "1",
             "--wb-gain", "0.2", "--blur-sigma", "0.5", "1.0", "--noise-prob", "0.9",
             "--noise-full-well", "1000", "5000", "--jpeg-prob", "0.0", "--cutout-prob", "0.4",
-            "--randconv-prob", "0.3", "--randconv-kernel", "1", "--randconv-kernel", "3"]
+            "--randconv-prob", "0.3", "--randconv-kernel", "1", "--randconv-kernel", "3",
+            "--randconv-keep-below", "40"]
     res = CliRunner().invoke(cli, args)
     assert res.exit_code == 0, res.output
     aug = torch.load(tmp_path / "run" / "weights.pt", weights_only=True)["train_config"]["augment"]
     assert aug["photometric"] is True and aug["gain"] == 0.2 and aug["blur_sigma"] == [0.5, 1.0]
     assert aug["noise_prob"] == 0.9 and aug["noise_full_well"] == [1000.0, 5000.0]
     assert aug["jpeg_prob"] == 0.0 and aug["cutout_prob"] == 0.4 and aug["randconv_prob"] == 0.3
-    assert aug["randconv_kernels"] == [1, 3]
+    assert aug["randconv_kernels"] == [1, 3] and aug["randconv_keep_below"] == 40.0
     assert AugmentConfig(**{k: tuple(v) if isinstance(v, list) else v for k, v in aug.items()}).gain == 0.2
     res = CliRunner().invoke(cli, [*args[:4], str(tmp_path / "run2"), *args[5:], "--no-photometric"])
     assert res.exit_code == 0, res.output
@@ -382,3 +384,26 @@ def test_cli_wires_the_photometric_options_into_the_saved_config(tmp_path):
     assert res.exit_code == 0, res.output
     saved = torch.load(tmp_path / "run7" / "weights.pt", weights_only=True)["train_config"]
     assert saved["randconv_consistency_target"] == "plain"
+
+
+def test_small_boxes_keep_their_pixels_under_a_random_convolution():
+    """Below `randconv_keep_below` a box (and a quarter of its size round it) keeps the input's
+    pixels exactly; a tall box, and the image far from any kept patch, are convolved; the same
+    number of same-sized decoy patches keep theirs; with the option off the result is the plain
+    random convolution's, byte for byte."""
+    img = np.clip(np.random.default_rng(3).normal(120, 40, (200, 400, 3)), 0, 255).astype(np.uint8)
+    boxes = np.array([[40.0, 60.0, 80.0, 80.0], [200.0, 20.0, 300.0, 180.0]])  # 20 px and 160 px tall
+    p = Photometric(randconv=(5, 0.0), randconv_keep_below=30.0, seed=11)
+    out = apply_photometric(img, boxes, p, AugmentConfig())
+    conv = random_convolution(img, 5, 0.0, np.random.default_rng([11, 3]))
+    assert np.array_equal(out[60:80, 40:80], img[60:80, 40:80])  # the small box itself, exactly
+    assert (out[55:85, 30:90] != conv[55:85, 30:90]).any(axis=2).mean() > 0.9  # and round it, mostly
+    keep = kept_regions(img.shape[:2], boxes, 30.0, np.random.default_rng([11, 4]))
+    assert np.array_equal(out[keep == 0], conv[keep == 0])
+    assert (keep[:, 200:301][20:181] < 1).mean() > 0.9  # the tall box is mostly convolved
+    # 1 + 2 decoys: the kept area is about three times the widened box's (60 x 30 px), less overlaps
+    assert 0.8 * 1800 < (keep > 0.5).sum() <= 3 * 1800 + 200
+    plain = apply_photometric(img, boxes, replace(p, randconv_keep_below=0.0), AugmentConfig())
+    assert np.array_equal(plain, conv)
+    with pytest.raises(ValueError, match="randconv_keep_below"):
+        AugmentConfig(randconv_keep_below=-1.0)
