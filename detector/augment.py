@@ -449,7 +449,7 @@ def kept_regions(shape: tuple[int, int], boxes: np.ndarray, below: float, rng: n
     about 2 px (so the box's outline against the scene stays the renderer's too)."""
     h, w = shape
     core, wide = np.zeros((h, w), np.float32), np.zeros((h, w), np.float32)
-    for x1, y1, x2, y2 in boxes[(boxes[:, 3] - boxes[:, 1]) < below] if len(boxes) else []:
+    for x1, y1, x2, y2 in boxes[(boxes[:, 3] - boxes[:, 1]) < below]:
         bw, bh = x2 - x1, y2 - y1
         centres = [((x1 + x2) / 2, (y1 + y2) / 2)]
         centres += [(rng.uniform(0, w), rng.uniform(0, h)) for _ in range(decoys)]
