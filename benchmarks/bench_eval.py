@@ -5,7 +5,11 @@ first call included).
 difficulties) and 15 detections each (noisy copies of most truth boxes plus false positives), all
 classes and metrics (2D, BEV, 3D, AOS; R11 and R40; strict and loose). The first call includes
 numba's compile time when its cache is cold (run with NUMBA_CACHE_DIR pointing at an empty folder
-to measure that case); the second call is the steady state. Then once more with range bins.
+to measure that case); the second call is the steady state. Then once more with range bins, and
+with `--bootstrap N` the 95 % intervals of `testbed evaluate --bootstrap` over N draws of the frames
+(`kitti.eval.bootstrap`: every AP of every draw).
+
+    .venv/bin/python benchmarks/bench_eval.py [--frames 3769] [--files] [--bootstrap 20]
 """
 
 from __future__ import annotations
@@ -83,6 +87,8 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=3769)
     ap.add_argument("--files", action="store_true",
                     help="also write the set to data/bench_eval/ and time `testbed evaluate` on it")
+    ap.add_argument("--bootstrap", type=int, default=0, metavar="DRAWS",
+                    help="also time the bootstrap intervals over this many draws")
     args = ap.parse_args()
     gt, dt = dataset(0, args.frames)
     n_gt = sum(len(v) for v in gt.values())
@@ -101,6 +107,15 @@ def main() -> None:
     t = time.perf_counter()
     evaluate(gt, dt, range_bins=[0, 20, 40, 60, 80])
     print(f"with --range-bins 0,20,40,60,80: {time.perf_counter() - t:6.2f} s")
+    if args.bootstrap:
+        from kitti.eval.bootstrap import bootstrap_ap
+
+        t = time.perf_counter()
+        bootstrap_ap(gt, {"pred": dt}, ("Car", "Pedestrian", "Cyclist"), ("2d", "bev", "3d", "aos"),
+                     draws=args.bootstrap)
+        took = time.perf_counter() - t
+        print(f"bootstrap, {args.bootstrap} draws (all classes, 2d/bev/3d/aos, strict+loose): "
+              f"{took:6.2f} s, {took / args.bootstrap:5.2f} s a draw")
     if args.files:
         root = Path("data/bench_eval")
         for sub, frames in (("label_2", gt), ("results", dt)):

@@ -92,6 +92,32 @@ def _metrics_for(cls_absent: dict, metrics: Sequence[str]) -> list[str]:
     return ms
 
 
+def check_request(classes: Sequence[str], metrics: Sequence[str]) -> None:
+    """A clear error for an unknown metric or class, before any work."""
+    bad = [m for m in metrics if m not in METRICS]
+    if bad:
+        raise ValueError(f"unknown metric(s) {bad}; known: {', '.join(METRICS)}")
+    for c in classes:
+        min_overlap(c, "2d")
+
+
+def overlaps_needed(metrics: Sequence[str]) -> list[str]:
+    """The pair overlaps the AP of `metrics` reads (AOS rides on the 2D matching)."""
+    need = {m for m in metrics if m != "aos"} | ({"2d"} if "aos" in metrics else set())
+    return [m for m in ("2d", "bev", "3d") if m in need]
+
+
+def class_ap(p: Packed, cls: str, metrics: Sequence[str], ovs: dict, dc_ov: np.ndarray
+             ) -> tuple[_Block, dict, dict]:
+    """One class: the strict block over the metrics its detections support (with 2D for AOS),
+    the loose AP of bird's-eye and 3D, and what the detections cannot be scored on."""
+    absent = _absent(p, cls, metrics)
+    ms = _metrics_for(absent, metrics)
+    strict = _ap_block(p, cls, ms, ovs, dc_ov, False, None)
+    loose = _ap_block(p, cls, [m for m in ms if m in ("bev", "3d")], ovs, dc_ov, True, None).ap
+    return strict, loose, absent
+
+
 def _range_bins(p: Packed, classes: list[str], metrics: list[str], absent: dict, ovs: dict,
                 dc_ov: np.ndarray, edges: np.ndarray, progress: bool) -> dict:
     """Strict AP per distance bin; objects outside the bin are ignored, not deleted."""
@@ -124,33 +150,25 @@ def evaluate(gt: Mapping[str, Sequence[Object3D]], dt: Mapping[str, Sequence[Obj
     set the matched-pair statistics and the 004 volumetric metrics (see `breakdown`, `volumetric`).
     """
     classes, metrics = list(classes), list(metrics)
-    bad = [m for m in metrics if m not in METRICS]
-    if bad:
-        raise ValueError(f"unknown metric(s) {bad}; known: {', '.join(METRICS)}")
-    for c in classes:
-        min_overlap(c, "2d")  # unknown class -> clear error before any work
+    check_request(classes, metrics)
     edges = None if range_bins is None else np.asarray(range_bins, dtype=float)
     if edges is not None and (len(edges) < 2 or np.any(np.diff(edges) <= 0)):
         raise ValueError(f"range bins must be at least two increasing edges, got {list(range_bins)}")
     p = pack(gt, dt)
-    need = {m for m in metrics if m != "aos"} | ({"2d"} if "aos" in metrics else set())
+    need = overlaps_needed(metrics)  # and 3D always: the matched-pair breakdowns read it
     ovs = {m: pair_overlaps(p, m) for m in ("2d", "bev", "3d") if m in need or m == "3d"}
     dc_ov = dontcare_overlap(p.dt, p.dc)
 
     ap, ap_loose, n_gt, recall, precision, absent = {}, {}, {}, {}, {}, {}
     for cls in _progress(classes, progress, "AP"):
-        ab = _absent(p, cls, metrics)
+        b, ap_loose[cls], ab = class_ap(p, cls, metrics, ovs, dc_ov)
         if ab:
             absent[cls] = ab
-        ms = _metrics_for(ab, metrics)
-        b = _ap_block(p, cls, ms, ovs, dc_ov, False, None)
-        keep = [m for m in ms if m in metrics]
+        keep = [m for m in b.ap if m in metrics]
         ap[cls] = {m: b.ap[m] for m in keep}
         recall[cls] = {m: b.recall[m] for m in keep}
         precision[cls] = {m: b.curves[m] for m in keep}
         n_gt[cls] = b.n_gt
-        ap_loose[cls] = _ap_block(p, cls, [m for m in ms if m in ("bev", "3d")], ovs, dc_ov, True,
-                                  None).ap
 
     bins_out = None if edges is None else _range_bins(p, classes, metrics, absent, ovs, dc_ov, edges,
                                                       progress)

@@ -67,6 +67,23 @@ def _columns(frames: Sequence[Sequence[Object3D]], detections: bool, ids: Sequen
         score=np.array([o.score if detections else 0.0 for o in objs], dtype=float))
 
 
+def _spans(start: np.ndarray, frames: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The rows of `frames` (indices, in that order, repeats allowed) of a per-frame layout with
+    row offsets `start`: (the new start offsets, the old row of each new row)."""
+    counts = np.diff(start)[frames]
+    new_start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+    rows = np.repeat(start[frames] - new_start[:-1], counts) + np.arange(new_start[-1])
+    return new_start, rows
+
+
+def take_objects(o: Objects, frames: np.ndarray) -> tuple[Objects, np.ndarray]:
+    """The objects of `frames` in that order (a frame taken twice counts twice), and the old row
+    of each new row."""
+    start, rows = _spans(o.start, frames)
+    return Objects(start, o.type[rows], o.bbox[rows], o.truncated[rows], o.occluded[rows],
+                   o.alpha[rows], o.box7[rows], o.score[rows]), rows
+
+
 @dataclass
 class Packed:
     ids: list[str]
@@ -76,6 +93,19 @@ class Packed:
     pair_start: np.ndarray  # (F+1,) truth x detection slots per frame, row-major
     pair_gt: np.ndarray  # (P,) global truth index of each slot
     pair_dt: np.ndarray  # (P,) global detection index
+
+    def take(self, frames: np.ndarray) -> tuple[Packed, np.ndarray, np.ndarray]:
+        """The frames at indices `frames` (in that order, repeats allowed) as a Packed of their
+        own, named by position as a bootstrap draw names them; with the old slot of each new pair
+        slot and the old row of each new detection, so overlaps computed once index into it
+        (what `pack` of the same frames would give, without reading any object again)."""
+        gt, _ = take_objects(self.gt, frames)
+        dt, dt_rows = take_objects(self.dt, frames)
+        dc, _ = take_objects(self.dc, frames)
+        pair_start, pair_gt, pair_dt = frame_pairs(gt.start, dt.start)
+        _, slots = _spans(self.pair_start, frames)
+        return (Packed([f"{k:06d}" for k in range(len(frames))], gt, dt, dc, pair_start, pair_gt,
+                       pair_dt), slots, dt_rows)
 
 
 def frame_pairs(a_start: np.ndarray, b_start: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

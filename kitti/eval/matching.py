@@ -70,7 +70,12 @@ def thresholds(scores, n_gt, n_sample_pts):
 def second_pass(gt_start, dt_start, pair_start, rel_gt, rel_gt_start, rel_dt, rel_dt_start, ov,
                 ig_gt, ig_dt, score, gt_alpha, dt_alpha, dc_ov, use_dc, compute_aos, min_ov, thr):
     """TP, FP, FN and orientation similarity at each threshold (pass 2): each truth takes the
-    highest-overlap detection above the threshold, falling back on an ignored one."""
+    highest-overlap detection above the threshold, falling back on an ignored one.
+
+    A frame's matching depends on the threshold only through which of its detections reach it:
+    where a lower threshold admits none more of them than the threshold before it, the frame's
+    counts are the ones just computed and are added again (the devkit's thresholds fall, so a
+    frame with k detections is matched at most k + 1 times, not once per threshold)."""
     nt = len(thr)
     tp = np.zeros(nt, np.int64)
     fp = np.zeros(nt, np.int64)
@@ -83,12 +88,30 @@ def second_pass(gt_start, dt_start, pair_start, rel_gt, rel_gt_start, rel_dt, re
         g0, g1 = rel_gt_start[f], rel_gt_start[f + 1]
         if g0 == g1 and d0 == d1:
             continue
+        ftp = 0
+        ffp = 0
+        ffn = 0
+        fsim = 0.0
+        admitted = -1  # detections reaching the previous threshold (none computed yet)
         for t in range(nt):
             th = thr[t]
+            n_in = 0
+            for b in range(d0, d1):
+                if score[rel_dt[b]] >= th:
+                    n_in += 1
+            if n_in == admitted and t > 0 and th <= thr[t - 1]:  # the same detections: same counts
+                tp[t] += ftp
+                fp[t] += ffp
+                fn[t] += ffn
+                if compute_aos and (ftp > 0 or ffp > 0):
+                    sim[t] += fsim
+                continue
+            admitted = n_in
             for b in range(d0, d1):
                 assigned[rel_dt[b]] = False
             ftp = 0
             ffp = 0
+            ffn = 0
             fsim = 0.0
             for a in range(g0, g1):
                 gi = rel_gt[a]
@@ -113,7 +136,7 @@ def second_pass(gt_start, dt_start, pair_start, rel_gt, rel_gt_start, rel_dt, re
                         assigned_ignored = True
                 if valid == NO_DETECTION:
                     if ig_gt[gi] == 0:
-                        fn[t] += 1
+                        ffn += 1
                 elif ig_gt[gi] == 1 or ig_dt[det] == 1:
                     assigned[det] = True
                 else:
@@ -129,6 +152,7 @@ def second_pass(gt_start, dt_start, pair_start, rel_gt, rel_gt_start, rel_dt, re
                         ffp += 1
             tp[t] += ftp
             fp[t] += ffp
+            fn[t] += ffn
             if compute_aos and (ftp > 0 or ffp > 0):
                 sim[t] += fsim
     return tp, fp, fn, sim
