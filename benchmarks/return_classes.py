@@ -143,10 +143,10 @@ def main() -> None:
         for name in set(classes.tolist()):  # the reflectance each class's returns read, summed
             reading[name] += float(swept.points[classes == name, 3].sum())
         n += len(swept.points)
-        moving = {a.id: a.moving for a in world.actors if a.cls in BY_ACTOR and BY_ACTOR[a.cls] in VEHICLES}
-        for i in swept.actor_id[swept.actor_id > 0].tolist():
-            if i in moving:
-                vehicle_returns["moving" if moving[i] else "standing"] += 1
+        vehicles = [a for a in world.actors if BY_ACTOR.get(a.cls) in VEHICLES]
+        for state in ("moving", "standing"):
+            ids = [a.id for a in vehicles if a.moving == (state == "moving")]
+            vehicle_returns[state] += int(np.isin(swept.actor_id, ids).sum())
     print(f"{args.spec}, {args.frames} frames (seed {args.seed}), {n / args.frames:,.0f} returns a frame"
           + (f", front boundaries drawn from {args.front_boundaries}" if args.front_boundaries else ""))
     print("| class | generated (%) | SemanticKITTI, sequences 00-10 (%) | ratio | generated: mean reflectance |"
