@@ -94,9 +94,9 @@ def bootstrap_ap(gt: Mapping[str, Sequence[Object3D]],
     for d, picks in enumerate(_progress(draw_frames(ids, draws, seed), progress, "bootstrap")):
         for j, (p, ovs, dc_ov) in enumerate(packed):
             q, slots, rows = p.take(picks)
-            q_ovs = {m: v[slots] for m, v in ovs.items()}
+            q_ovs, q_dc = {m: v[slots] for m, v in ovs.items()}, dc_ov[rows]
             for c in classes:
-                strict, loose_ap, _ = class_ap(q, c, metrics, q_ovs, dc_ov[rows])
+                strict, loose_ap, _ = class_ap(q, c, metrics, q_ovs, q_dc)
                 for m in metrics:
                     if m in strict.ap:
                         ap[c, m, False][d, j] = strict.ap[m]["R40"]
