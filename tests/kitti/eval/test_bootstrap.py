@@ -11,6 +11,7 @@ from click.testing import CliRunner
 from kitti.eval.bootstrap import bootstrap_ap, draw_frames, resampled
 from kitti.labels import Object3D, write_label
 from testbed.cmd_evaluate import evaluate
+from tests.kitti.eval.test_reference import random_set
 
 
 def car(score: float | None = None) -> Object3D:
@@ -63,43 +64,14 @@ def test_evaluate_prints_and_writes_the_intervals(tmp_path):
     assert doc["draws"] == 200 and doc["R40"]["Car"]["2d"][1] == [0.0, 2.5]
 
 
-def _scene(rng: np.random.Generator, n_frames: int) -> tuple[dict, dict]:
-    """Random frames: Cars, Pedestrians, Vans and DontCare regions of every difficulty, and
-    detections that are the truth jittered, some of it missed, plus false ones, with 3D boxes."""
-    def obj(kind: str, score: float | None = None) -> Object3D:
-        x1, y1 = rng.uniform(0, 1100), rng.uniform(100, 300)
-        h = rng.uniform(15, 120)
-        loc = np.array([rng.uniform(-10, 10), rng.uniform(1.4, 1.8), rng.uniform(5, 60)])
-        return Object3D(kind, float(rng.choice([0.0, 0.2, 0.6])), int(rng.integers(0, 3)),
-                        float(rng.uniform(-3, 3)), np.array([x1, y1, x1 + h * 1.6, y1 + h]),
-                        1.5, 1.6, 3.9, loc, float(rng.uniform(-3, 3)), score)
-
-    def jitter(o: Object3D) -> Object3D:
-        return Object3D(o.type, 0.0, 0, o.alpha + rng.normal(0, 0.2), o.bbox + rng.normal(0, 4, 4),
-                        o.h, o.w * rng.uniform(0.9, 1.1), o.l, o.location + rng.normal(0, 0.3, 3),
-                        o.rotation_y + rng.normal(0, 0.1), float(rng.uniform(0.05, 1)))
-
-    gt, dt = {}, {}
-    for f in range(n_frames):
-        truth = [obj(str(rng.choice(["Car", "Car", "Pedestrian", "Van", "DontCare"])))
-                 for _ in range(rng.integers(0, 6))]
-        found = [jitter(o) for o in truth if o.type != "DontCare" and rng.uniform() < 0.8]
-        false = [obj(str(rng.choice(["Car", "Pedestrian"])), float(rng.uniform(0, 0.6)))
-                 for _ in range(rng.integers(0, 3))]
-        gt[f"{f:06d}"] = truth
-        if found or false:
-            dt[f"{f:06d}"] = found + false
-    return gt, dt
-
-
 def test_each_draw_scores_as_evaluate_scores_the_drawn_frames():
     """The bootstrap packs each result set once and takes a draw's rows from it; every AP of
     every draw must equal `evaluate` on the drawn frames (`resampled`), bit for bit, for each
-    metric, strict and loose, with frames drawn twice and frames without detections."""
+    metric, strict and loose, with frames drawn twice, a frame without a result file and tied
+    scores (the devkit transliteration's random sets)."""
     from kitti.eval.evaluate import evaluate as evaluate_frames
 
-    rng = np.random.default_rng(5)
-    gt, dt = _scene(rng, 30)
+    gt, dt = random_set(11, frames=30)
     runs = {"a": dt, "b": {k: v[::2] for k, v in dt.items()}}
     classes, metrics = ["Car", "Pedestrian"], ["2d", "aos", "bev", "3d"]
     boot = bootstrap_ap(gt, runs, classes, metrics, draws=8, seed=3)
