@@ -12,10 +12,11 @@ positives while the ranking of cars against clutter is unchanged.
 
     .venv/bin/python benchmarks/detector_real.py --data ../shared/kitti_real_dev \
         --weights detector/weights/flexinet_small.pt [--weights OTHER.pt ...] --out runs/det_real \
-        [--mirror on|off|both] [--blur-sigma 2] [--objects]
+        [--mirror on|off|both] [--scales 1 --scales 1,1.25] [--blur-sigma 2] [--objects]
 
 `--mirror`: the image read also mirrored (as `testbed detect` does by default), in one pass only,
-or both ways, each weight file's rows side by side.
+or both ways, each weight file's rows side by side. `--scales`: the reads' input scales
+(`Detector.scales`), each set given its own rows.
 """
 
 from __future__ import annotations
@@ -156,6 +157,9 @@ def main() -> None:
                     help="diagnosis: Gaussian-blur every image by this many pixels first")
     ap.add_argument("--mirror", choices=["on", "off", "both"], default="on",
                     help="read each image also mirrored (on, the default of `testbed detect`), not, or both")
+    ap.add_argument("--scales", action="append",
+                    help="input scales of the reads, comma-separated (`testbed detect --scales`); given "
+                         "more than once, each set side by side (default: 1)")
     ap.add_argument("--objects", action="store_true",
                     help="also list every labelled Car and Van with the detection that overlaps it most")
     args = ap.parse_args()
@@ -170,11 +174,14 @@ def main() -> None:
     near, equal, objects, preds = [], [], [], {}
     modes = {"on": [True], "off": [False], "both": [False, True]}[args.mirror]
     split = Path(args.data) / "ImageSets" / f"{args.split}.txt" if args.split else None
-    runs = [(w, m) for w in args.weights for m in modes]
-    for i, (w, mirror) in enumerate(runs):
+    scale_sets = [tuple(float(v) for v in c.split(",")) for c in args.scales or ["1"]]
+    runs = [(w, m, c) for w in args.weights for m in modes for c in scale_sets]
+    for i, (w, mirror, scales) in enumerate(runs):
         pred_dir = args.out / f"pred_{i}"
-        pred = detect_dataset(args.data, pred_dir, w, split=args.split, progress=False, mirror=mirror)
-        w = f"{w} ({'mirrored' if mirror else 'one pass'})"
+        pred = detect_dataset(args.data, pred_dir, w, split=args.split, progress=False, mirror=mirror,
+                              scales=scales)
+        at = "" if scales == (1.0,) else f", scales {','.join(f'{v:g}' for v in scales)}"
+        w = f"{w} ({'mirrored' if mirror else 'one pass'}{at})"
         gt, dt = load_folders(Path(args.data) / "training" / "label_2", pred_dir, split, progress=False)
         ap7 = evaluate(gt, dt, classes=["Car"]).ap["Car"]["2d"]["R40"]
         ap5 = ap_2d(gt, dt, "Car", 0.5)

@@ -11,7 +11,7 @@ from tqdm import tqdm
 
 from detector.boxes import Letterbox
 from detector.data import CLASSES
-from detector.model import FlexiNet, ModelConfig
+from detector.model import STRIDES, FlexiNet, ModelConfig
 from detector.nms import postprocess
 from kitti.dataset import KittiDataset
 from kitti.io import atomic_path
@@ -71,18 +71,24 @@ class Detector:
     `models`: one network, or several read together (an output-space ensemble, a checkpoint made by
     `save_ensemble`): every network's reads are views like the mirrored one, so a box is scored by
     the mean over networks and reads, and what one network alone fires on ranks below what all see.
-    Each network adds its full cost."""
+    Each network adds its full cost.
+
+    `scales`: the image is also read letterboxed into the network input scaled by each factor
+    (rounded to the largest stride), each read a view as above, its boxes mapped to the first
+    read's input pixels before the one NMS. A read at 0.67 costs 0.45 of a full one."""
     models: tuple[FlexiNet, ...]
     input_size: tuple[int, int]  # network input (w, h)
     classes: tuple[str, ...]
     mirror: bool = True
+    scales: tuple[float, ...] = (1.0,)
 
     @property
     def views(self) -> int:
-        return len(self.models) * (2 if self.mirror else 1)
+        return len(self.models) * (2 if self.mirror else 1) * len(self.scales)
 
     @staticmethod
-    def load(weights: str | Path | None = None, mirror: bool = True) -> "Detector":
+    def load(weights: str | Path | None = None, mirror: bool = True,
+             scales: tuple[float, ...] = (1.0,)) -> "Detector":
         path = Path(weights) if weights else DEFAULT_WEIGHTS
         if not path.is_file():
             raise FileNotFoundError(f"detector weights not found: {path}")
@@ -92,7 +98,10 @@ class Detector:
             model = FlexiNet(ModelConfig.from_dict(ck["model_cfg"]))
             model.load_state_dict(ck["model"])
             models.append(model.eval().fuse())
-        return Detector(tuple(models), tuple(members[0]["input_size"]), tuple(members[0]["classes"]), mirror)
+        if not scales or scales[0] != 1.0 or min(scales) <= 0:
+            raise ValueError(f"scales must start with 1.0 and be positive, got {scales}")
+        return Detector(tuple(models), tuple(members[0]["input_size"]), tuple(members[0]["classes"]), mirror,
+                        tuple(scales))
 
     @torch.no_grad()
     def detect(self, images: list[np.ndarray], conf_threshold: float = 0.01, iou_threshold: float = 0.6,
@@ -101,10 +110,17 @@ class Detector:
         if not images:
             return []
         boxes = [Letterbox.fit(im.shape[1], im.shape[0], *self.input_size) for im in images]
-        x = torch.from_numpy(np.stack([lb.apply(im) for lb, im in zip(boxes, images)]))
-        x = x.permute(0, 3, 1, 2).float().div_(255)
-        dets = postprocess(self._raw(x), conf_threshold, iou_threshold, max_det,
-                           views=self.views)
+        reads, view_of = [], []
+        for k, s in enumerate(self.scales):
+            size = self.input_size if k == 0 else self.scaled_size(s)
+            lbs = boxes if k == 0 else [Letterbox.fit(im.shape[1], im.shape[0], *size) for im in images]
+            x = torch.from_numpy(np.stack([lb.apply(im) for lb, im in zip(lbs, images)]))
+            raw = self._raw(x.permute(0, 3, 1, 2).float().div_(255), size[0])
+            reads.append(raw if k == 0 else _moved(raw, lbs, boxes))
+            per_read = len(self.models) * (2 if self.mirror else 1)
+            view_of.append(k * per_read + torch.arange(raw.shape[1]) // (raw.shape[1] // per_read))
+        views = self.views if len(self.scales) == 1 else torch.cat(view_of)
+        dets = postprocess(torch.cat(reads, 1), conf_threshold, iou_threshold, max_det, views=views)
         out = []
         for lb, d in zip(boxes, dets):
             d = d.double().numpy()
@@ -113,7 +129,12 @@ class Detector:
             out.append(d[keep])
         return out
 
-    def _raw(self, x: torch.Tensor) -> torch.Tensor:
+    def scaled_size(self, scale: float) -> tuple[int, int]:
+        """The network input (w, h) scaled, each side rounded to a multiple of the largest stride."""
+        step = max(STRIDES)
+        return tuple(max(step, round(v * scale / step) * step) for v in self.input_size)
+
+    def _raw(self, x: torch.Tensor, width: int) -> torch.Tensor:
         """Decoded candidates (B, views x N, 5 + nc) in input pixels, one block of N per view: per
         network its plain read and, with `mirror`, its mirrored read with the boxes mapped back
         (centre x -> input width - x)."""
@@ -125,7 +146,7 @@ class Detector:
             blocks.append(raw[:n])
             if self.mirror:
                 back = raw[n:].clone()
-                back[..., 0] = self.input_size[0] - back[..., 0]
+                back[..., 0] = width - back[..., 0]
                 blocks.append(back)
         return torch.cat(blocks, 1)
 
@@ -138,12 +159,26 @@ class Detector:
                 for *b, s, c in det]
 
 
+def _moved(raw: torch.Tensor, src: list[Letterbox], dst: list[Letterbox]) -> torch.Tensor:
+    """Candidates (B, N, 5 + nc) whose centre-size boxes are in the input pixels of letterboxes
+    `src` (one per image) -> in those of `dst`, through the source image."""
+    k = torch.tensor([[d.scale[0] / s.scale[0], d.scale[1] / s.scale[1]] for s, d in zip(src, dst)],
+                     dtype=torch.float64)
+    off = torch.tensor([[d.pad_x - s.pad_x * kx, d.pad_y - s.pad_y * ky]
+                        for s, d, (kx, ky) in zip(src, dst, k.tolist())], dtype=torch.float64)
+    out = raw.clone()
+    out[..., :2] = raw[..., :2] * k[:, None].to(raw.dtype) + off[:, None].to(raw.dtype)
+    out[..., 2:4] = raw[..., 2:4] * k[:, None].to(raw.dtype)
+    return out
+
+
 def detect_dataset(root: str | Path, out_dir: str | Path, weights: str | Path | None = None,
                    split: str | None = "val", part: str = "training", batch: int = 4,
                    conf_threshold: float = 0.01, iou_threshold: float = 0.6,
-                   progress: bool = True, mirror: bool = True) -> dict[str, list[Object3D]]:
+                   progress: bool = True, mirror: bool = True,
+                   scales: tuple[float, ...] = (1.0,)) -> dict[str, list[Object3D]]:
     """Detect every frame of a split and write one KITTI result file per frame (empty when none)."""
-    det = Detector.load(weights, mirror)
+    det = Detector.load(weights, mirror, scales)
     ds = KittiDataset(root, part=part)
     ids = ds.ids(split)
     out_dir = Path(out_dir)

@@ -59,7 +59,8 @@ def batched_nms_clusters(boxes: torch.Tensor, scores: torch.Tensor, classes: tor
 
 
 def postprocess(pred: torch.Tensor, conf_threshold: float = 0.001, iou_threshold: float = 0.6,
-                max_det: int = 100, max_candidates: int = 3000, views: int = 1) -> list[torch.Tensor]:
+                max_det: int = 100, max_candidates: int = 3000,
+                views: int | torch.Tensor = 1) -> list[torch.Tensor]:
     """Decoded predictions (B, N, 5 + nc) -> per image (K, 6): x1, y1, x2, y2, score, class.
 
     Score = objectness x class probability; every class above the threshold is a candidate
@@ -69,11 +70,16 @@ def postprocess(pred: torch.Tensor, conf_threshold: float = 0.001, iou_threshold
     back), their candidates in equal blocks along N. One NMS runs over all of them, and each kept
     box is scored by the mean over the views of the best score among the candidates it
     suppressed (itself included; 0 for a view with none): a box that only one read finds scores
-    half, so what one view alone fires on ranks below what both see.
+    half, so what one view alone fires on ranks below what both see. Views of unequal size (reads
+    at other scales have other grids) come as a tensor: each candidate's view, (N,) int64.
     """
+    if isinstance(views, torch.Tensor):
+        view_of, views = views, int(views.max()) + 1
+    else:
+        view_of = torch.arange(pred.shape[1]) // (pred.shape[1] // views)
     out = []
     for p in pred:
-        view = torch.arange(p.shape[0]) // (p.shape[0] // views)
+        view = view_of
         m = p[:, 4] > conf_threshold
         p, view = p[m], view[m]
         if p.shape[0] == 0:

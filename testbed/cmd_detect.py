@@ -25,8 +25,11 @@ import click
               help="CPU threads (1 is faster on a machine already busy with other jobs).")
 @click.option("--mirror/--no-mirror", default=True, show_default=True,
               help="Also read each image mirrored and merge both passes' boxes (twice the work).")
+@click.option("--scales", default="1", show_default=True,
+              help="Comma-separated input scales, the first 1: each image is also read letterboxed "
+                   "into the network input scaled by each further factor (e.g. 1,0.83,0.67).")
 def detect(data: Path, out: Path, weights: Path | None, split: str, part: str, conf: float, iou: float,
-           batch: int, threads: int, mirror: bool) -> None:
+           batch: int, threads: int, mirror: bool, scales: str) -> None:
     """Detect Car, Pedestrian and Cyclist in every frame of DATA's split; boxes are mapped back
     from the letterboxed input to exact image pixels; 3D fields are the format's placeholders."""
     import torch
@@ -36,8 +39,13 @@ def detect(data: Path, out: Path, weights: Path | None, split: str, part: str, c
 
     torch.set_num_threads(threads)
     try:
+        factors = tuple(float(v) for v in scales.split(","))
+    except ValueError:
+        raise click.BadParameter(f"not a comma-separated list of numbers: {scales!r}",
+                                 param_hint="--scales") from None
+    try:
         res = detect_dataset(data, out, weights, None if split == "all" else split, part, batch, conf, iou,
-                             mirror=mirror)
+                             mirror=mirror, scales=factors)
     except (KittiFormatError, ValueError, FileNotFoundError) as e:
         raise click.ClickException(str(e)) from None
     click.echo(f"{sum(len(v) for v in res.values())} detections in {len(res)} frames written to {out}")
