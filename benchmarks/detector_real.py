@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from detector.augment import pairwise_iou
-from detector.infer import detect_dataset
+from detector.infer import default_scales, detect_dataset
 from kitti.dataset import KittiDataset
 from kitti.eval import ap_2d, evaluate
 from kitti.eval.bootstrap import DRAWS, bootstrap_ap
@@ -159,7 +159,8 @@ def main() -> None:
                     help="read each image also mirrored (on, the default of `testbed detect`), not, or both")
     ap.add_argument("--scales", action="append",
                     help="input scales of the reads, comma-separated (`testbed detect --scales`); given "
-                         "more than once, each set side by side (default: 1)")
+                         "more than once, each set side by side (default: each weight file's "
+                         "default read, `detector.infer.default_scales`)")
     ap.add_argument("--objects", action="store_true",
                     help="also list every labelled Car and Van with the detection that overlaps it most")
     args = ap.parse_args()
@@ -174,13 +175,13 @@ def main() -> None:
     near, equal, objects, preds = [], [], [], {}
     modes = {"on": [True], "off": [False], "both": [False, True]}[args.mirror]
     split = Path(args.data) / "ImageSets" / f"{args.split}.txt" if args.split else None
-    scale_sets = [tuple(float(v) for v in c.split(",")) for c in args.scales or ["1"]]
-    runs = [(w, m, c) for w in args.weights for m in modes for c in scale_sets]
+    scale_sets = [tuple(float(v) for v in c.split(",")) for c in args.scales] if args.scales else [None]
+    runs = [(w, m, c or default_scales(w)) for w in args.weights for m in modes for c in scale_sets]
     for i, (w, mirror, scales) in enumerate(runs):
         pred_dir = args.out / f"pred_{i}"
         pred = detect_dataset(args.data, pred_dir, w, split=args.split, progress=False, mirror=mirror,
                               scales=scales)
-        at = "" if scales == (1.0,) else f", scales {','.join(f'{v:g}' for v in scales)}"
+        at = f", scales {','.join(f'{v:g}' for v in scales)}"
         w = f"{w} ({'mirrored' if mirror else 'one pass'}{at})"
         gt, dt = load_folders(Path(args.data) / "training" / "label_2", pred_dir, split, progress=False)
         ap7 = evaluate(gt, dt, classes=["Car"]).ap["Car"]["2d"]["R40"]

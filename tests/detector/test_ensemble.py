@@ -9,6 +9,8 @@ import torch
 from detector.infer import DEFAULT_WEIGHTS, Detector, save_ensemble
 from kitti.dataset import KittiDataset
 
+ONE = (1.0,)  # each network read at its input size only (with its mirror): two views a network
+
 
 @pytest.fixture(scope="module")
 def street(tmp_path_factory):
@@ -36,7 +38,7 @@ def blind_copy(path: Path) -> Path:
 
 def test_one_network_twice_reads_as_the_network(street, tmp_path):
     save_ensemble(tmp_path / "twice.pt", [DEFAULT_WEIGHTS, DEFAULT_WEIGHTS])
-    twice, once = Detector.load(tmp_path / "twice.pt"), Detector.load()
+    twice, once = Detector.load(tmp_path / "twice.pt", scales=ONE), Detector.load(scales=ONE)
     assert len(twice.models) == 2 and twice.views == 4 and once.views == 2
     a, b = once.detect([street], 0.05)[0], twice.detect([street], 0.05)[0]
     assert len(a) >= 10 and a.shape == b.shape
@@ -47,8 +49,8 @@ def test_a_network_that_proposes_nothing_halves_every_score(street, tmp_path):
     """Its two views hold no candidate, so each box's mean over four views is half its mean over
     the shipped network's two; the boxes and their order are the shipped network's."""
     save_ensemble(tmp_path / "half.pt", [DEFAULT_WEIGHTS, blind_copy(tmp_path / "blind.pt")])
-    a = Detector.load().detect([street], 0.05)[0]
-    b = Detector.load(tmp_path / "half.pt").detect([street], 0.05)[0]
+    a = Detector.load(scales=ONE).detect([street], 0.05)[0]
+    b = Detector.load(tmp_path / "half.pt", scales=ONE).detect([street], 0.05)[0]
     assert len(a) >= 10 and a.shape == b.shape
     np.testing.assert_array_equal(b[:, [0, 1, 2, 3, 5]], a[:, [0, 1, 2, 3, 5]])
     np.testing.assert_allclose(b[:, 4], a[:, 4] / 2, rtol=1e-6)

@@ -7,7 +7,7 @@ import pytest
 import torch
 
 from detector.boxes import Letterbox, box_iou_matrix, cxcywh_to_xyxy
-from detector.infer import Detector, _moved
+from detector.infer import DEFAULT_SCALES, DEFAULT_WEIGHTS, Detector, _moved
 from detector.nms import postprocess
 
 
@@ -57,7 +57,7 @@ def test_views_given_one_by_one_read_as_equal_blocks():
 def test_a_second_read_at_full_scale_reads_as_the_first(street):
     """Scale 1 twice: four views that are two identical pairs, so the mean over them is the mean
     over the pair, box for box."""
-    once, twice = Detector.load(), Detector.load(scales=(1.0, 1.0))
+    once, twice = Detector.load(scales=(1.0,)), Detector.load(scales=(1.0, 1.0))
     assert twice.views == 4 and twice.scaled_size(1.0) == once.input_size
     a, b = once.detect([street], 0.05)[0], twice.detect([street], 0.05)[0]
     assert len(a) >= 10
@@ -81,3 +81,13 @@ def test_a_smaller_read_finds_the_same_cars(street):
 def test_bad_scales_are_refused(scales):
     with pytest.raises(ValueError, match="scales"):
         Detector.load(scales=scales)
+
+
+def test_the_shipped_weights_are_read_at_their_judged_scales(tmp_path):
+    """The read judged for the shipped network is its default; another file (the same bytes
+    elsewhere, as a user's own run) is read at 1 unless asked."""
+    assert Detector.load().scales == DEFAULT_SCALES == (1.0, 1.25, 0.83)
+    copy = tmp_path / "mine.pt"
+    copy.write_bytes(DEFAULT_WEIGHTS.read_bytes())
+    assert Detector.load(copy).scales == (1.0,)
+    assert Detector.load(copy, scales=DEFAULT_SCALES).views == 6
