@@ -7,20 +7,8 @@ import pytest
 import torch
 
 from detector.infer import DEFAULT_WEIGHTS, Detector, save_ensemble
-from kitti.dataset import KittiDataset
 
 ONE = (1.0,)  # each network read at its input size only (with its mirror): two views a network
-
-
-@pytest.fixture(scope="module")
-def street(tmp_path_factory):
-    from simgen.generate import generate
-    from simgen.spec import load_spec
-    out = tmp_path_factory.mktemp("ens") / "q"
-    spec = load_spec(Path(__file__).resolve().parents[2] / "scenes/quickstart.yaml")
-    generate(spec.model_copy(update={"lidar": None}), out, frames=1, seed=3)
-    ds = KittiDataset(out)
-    return ds.image(ds.ids(None)[0])
 
 
 def blind_copy(path: Path) -> Path:

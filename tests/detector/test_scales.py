@@ -1,6 +1,5 @@
 """Reads at other input scales (`Detector.scales`): each a view of the one NMS, its boxes moved
 into the first read's input pixels through the source image."""
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -9,18 +8,6 @@ import torch
 from detector.boxes import Letterbox, box_iou_matrix, cxcywh_to_xyxy
 from detector.infer import DEFAULT_SCALES, DEFAULT_WEIGHTS, Detector, _moved
 from detector.nms import postprocess
-
-
-@pytest.fixture(scope="module")
-def street(tmp_path_factory):
-    from kitti.dataset import KittiDataset
-    from simgen.generate import generate
-    from simgen.spec import load_spec
-    out = tmp_path_factory.mktemp("scales") / "q"
-    spec = load_spec(Path(__file__).resolve().parents[2] / "scenes/quickstart.yaml")
-    generate(spec.model_copy(update={"lidar": None}), out, frames=1, seed=3)
-    ds = KittiDataset(out)
-    return ds.image(ds.ids(None)[0])
 
 
 def xyxy_to_cxcywh(b: np.ndarray) -> np.ndarray:
