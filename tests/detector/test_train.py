@@ -1,5 +1,4 @@
 """End to end on a toy KITTI folder: a tiny run overfits, resume is exact, detect writes KITTI results."""
-from pathlib import Path
 
 import numpy as np
 import pytest
