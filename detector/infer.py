@@ -27,7 +27,8 @@ DEFAULT_SCALES = (1.0, 1.25, 0.83)
 
 
 def default_scales(weights: str | Path | None) -> tuple[float, ...]:
-    """The read a weight file gets when none is asked: DEFAULT_SCALES for the shipped file, 1 else."""
+    """The read a weight file gets when none is asked: DEFAULT_SCALES for the shipped file, the
+    input size alone (1.0,) for any other."""
     path = Path(weights) if weights else DEFAULT_WEIGHTS
     return DEFAULT_SCALES if path.resolve() == DEFAULT_WEIGHTS.resolve() else (1.0,)
 
@@ -104,7 +105,9 @@ class Detector:
              scales: tuple[float, ...] | None = None) -> "Detector":
         """`scales` None: the weights' default read (`default_scales`)."""
         path = Path(weights) if weights else DEFAULT_WEIGHTS
-        scales = default_scales(path) if scales is None else scales
+        scales = default_scales(path) if scales is None else tuple(scales)
+        if not scales or scales[0] != 1.0 or min(scales) <= 0:
+            raise ValueError(f"scales must start with 1.0 and be positive, got {scales}")
         if not path.is_file():
             raise FileNotFoundError(f"detector weights not found: {path}")
         members = checkpoint_members(torch.load(path, map_location="cpu", weights_only=True), path)
@@ -113,10 +116,8 @@ class Detector:
             model = FlexiNet(ModelConfig.from_dict(ck["model_cfg"]))
             model.load_state_dict(ck["model"])
             models.append(model.eval().fuse())
-        if not scales or scales[0] != 1.0 or min(scales) <= 0:
-            raise ValueError(f"scales must start with 1.0 and be positive, got {scales}")
         return Detector(tuple(models), tuple(members[0]["input_size"]), tuple(members[0]["classes"]), mirror,
-                        tuple(scales))
+                        scales)
 
     @torch.no_grad()
     def detect(self, images: list[np.ndarray], conf_threshold: float = 0.01, iou_threshold: float = 0.6,
@@ -126,13 +127,13 @@ class Detector:
             return []
         boxes = [Letterbox.fit(im.shape[1], im.shape[0], *self.input_size) for im in images]
         reads, view_of = [], []
+        per_read = len(self.models) * (2 if self.mirror else 1)
         for k, s in enumerate(self.scales):
             size = self.input_size if k == 0 else self.scaled_size(s)
             lbs = boxes if k == 0 else [Letterbox.fit(im.shape[1], im.shape[0], *size) for im in images]
             x = torch.from_numpy(np.stack([lb.apply(im) for lb, im in zip(lbs, images)]))
             raw = self._raw(x.permute(0, 3, 1, 2).float().div_(255), size[0])
             reads.append(raw if k == 0 else _moved(raw, lbs, boxes))
-            per_read = len(self.models) * (2 if self.mirror else 1)
             view_of.append(k * per_read + torch.arange(raw.shape[1]) // (raw.shape[1] // per_read))
         views = self.views if len(self.scales) == 1 else torch.cat(view_of)
         dets = postprocess(torch.cat(reads, 1), conf_threshold, iou_threshold, max_det, views=views)
