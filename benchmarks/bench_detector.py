@@ -25,16 +25,14 @@ from detector.model import count_parameters
 from detector.nms import postprocess
 
 
-def time_inference(det: Detector, runs: int, img: np.ndarray,
-                   scales: tuple[float, ...] = ()) -> dict[str, float]:
+def time_inference(det: Detector, runs: int, img: np.ndarray, scales: tuple[float, ...]) -> dict[str, float]:
     """Median times on one 1242x375 image (post-processing cost depends on the image: use a real
     frame; uniform noise makes thousands of low-score candidates and a slow NMS): the network once,
-    and the whole detection read once and mirrored (`testbed detect`'s default) or once, and, given
-    `scales`, read mirrored at those scales."""
+    and the whole detection read at scale 1 mirrored or once, and read mirrored at `scales`."""
     lb = Letterbox.fit(1242, 375, *det.input_size)
     x = torch.from_numpy(lb.apply(img)[None]).permute(0, 3, 1, 2).float().div_(255)
     single = replace(det, mirror=False)
-    scaled = replace(det, scales=scales) if scales else None
+    scaled = replace(det, scales=scales)
     for _ in range(3):
         det.detect([img])
     net, mirrored, once, at_scales = [], [], [], []
@@ -45,15 +43,13 @@ def time_inference(det: Detector, runs: int, img: np.ndarray,
             net.append(time.perf_counter() - t0)
             postprocess(raw)
             for d, acc in ((det, mirrored), (single, once), (scaled, at_scales)):
-                if d is None:
-                    continue
                 t0 = time.perf_counter()
                 d.detect([img])
                 acc.append(time.perf_counter() - t0)
     return {"network_ms": 1000 * statistics.median(net),
             "end_to_end_ms": 1000 * statistics.median(mirrored),
             "one_pass_ms": 1000 * statistics.median(once),
-            "scales_ms": 1000 * statistics.median(at_scales) if at_scales else float("nan")}
+            "scales_ms": 1000 * statistics.median(at_scales)}
 
 
 def time_to_target(histories: list[str], target: float) -> str:
