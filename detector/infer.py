@@ -135,8 +135,8 @@ class Detector:
             raw = self._raw(x.permute(0, 3, 1, 2).float().div_(255), size[0])
             reads.append(raw if k == 0 else _moved(raw, lbs, boxes))
             view_of.append(k * per_read + torch.arange(raw.shape[1]) // (raw.shape[1] // per_read))
-        views = self.views if len(self.scales) == 1 else torch.cat(view_of)
-        dets = postprocess(torch.cat(reads, 1), conf_threshold, iou_threshold, max_det, views=views)
+        dets = postprocess(torch.cat(reads, 1), conf_threshold, iou_threshold, max_det,
+                           views=torch.cat(view_of))
         out = []
         for lb, d in zip(boxes, dets):
             d = d.double().numpy()
