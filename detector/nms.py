@@ -60,7 +60,7 @@ def batched_nms_clusters(boxes: torch.Tensor, scores: torch.Tensor, classes: tor
 
 def postprocess(pred: torch.Tensor, conf_threshold: float = 0.001, iou_threshold: float = 0.6,
                 max_det: int = 100, max_candidates: int = 3000,
-                views: int | torch.Tensor = 1) -> list[torch.Tensor]:
+                views: int | torch.Tensor = 1, fuse_boxes: bool = False) -> list[torch.Tensor]:
     """Decoded predictions (B, N, 5 + nc) -> per image (K, 6): x1, y1, x2, y2, score, class.
 
     Score = objectness x class probability; every class above the threshold is a candidate
@@ -72,6 +72,9 @@ def postprocess(pred: torch.Tensor, conf_threshold: float = 0.001, iou_threshold
     suppressed (itself included; 0 for a view with none): a box that only one read finds scores
     half, so what one view alone fires on ranks below what both see. Views of unequal size (reads
     at other scales have other grids) come as a tensor: each candidate's view, (N,) int64.
+    `fuse_boxes` (views > 1): each kept box's sides become the mean of the views' best boxes in its
+    cluster, each weighted by its score (the boxes that give the view-mean score), instead of the
+    one best box's.
     """
     if isinstance(views, torch.Tensor):
         view_of, views = views, int(views.max()) + 1
@@ -93,8 +96,11 @@ def postprocess(pred: torch.Tensor, conf_threshold: float = 0.001, iou_threshold
             top = torch.topk(s, max_candidates).indices
             boxes, s, j, view = boxes[top], s[top], j[top], view[top]
         if views > 1:
-            keep, s_keep = _view_mean_scores(s, view, *batched_nms_clusters(boxes, s, j, iou_threshold),
-                                             views)
+            keep, s_keep, fused = _view_mean_scores(s, view, *batched_nms_clusters(boxes, s, j, iou_threshold),
+                                                    views, boxes if fuse_boxes else None)
+            if fused is not None:
+                boxes = boxes.clone()
+                boxes[keep] = fused
         else:
             keep = batched_nms(boxes, s, j, iou_threshold)
             s_keep = s[keep]
@@ -104,11 +110,24 @@ def postprocess(pred: torch.Tensor, conf_threshold: float = 0.001, iou_threshold
 
 
 def _view_mean_scores(s: torch.Tensor, view: torch.Tensor, keep: torch.Tensor, cluster: torch.Tensor,
-                      views: int) -> tuple[torch.Tensor, torch.Tensor]:
+                      views: int, boxes: torch.Tensor | None = None
+                      ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor | None]:
     """Kept boxes re-scored by the mean over views of their cluster's best score, best first (a
-    box's cluster: the kept box that suppressed it in the greedy pass, or itself)."""
+    box's cluster: the kept box that suppressed it in the greedy pass, or itself); given the
+    candidates' `boxes`, also each kept box fused: the score-weighted mean of its views' best boxes
+    (on a tie, the first candidate)."""
+    slot = cluster * views + view
     best = torch.zeros(len(keep) * views, dtype=s.dtype)
-    best.scatter_reduce_(0, cluster * views + view, s, reduce="amax")
+    best.scatter_reduce_(0, slot, s, reduce="amax")
     score = best.view(len(keep), views).mean(1)
     order = torch.sort(score, descending=True, stable=True).indices
-    return keep[order], score[order]
+    if boxes is None:
+        return keep[order], score[order], None
+    top = torch.nonzero(s == best[slot]).squeeze(1)
+    first = torch.full((len(keep) * views,), len(s), dtype=torch.long)
+    first.scatter_reduce_(0, slot[top], top, reduce="amin")
+    seen = first < len(s)
+    weighted = torch.zeros(len(keep) * views, 4, dtype=boxes.dtype)
+    weighted[seen] = boxes[first[seen]] * best[seen, None]
+    fused = weighted.view(len(keep), views, 4).sum(1) / best.view(len(keep), views).sum(1, keepdim=True)
+    return keep[order], score[order], fused[order]

@@ -30,8 +30,11 @@ import click
                    "into the network input scaled by each further factor [default: 1,1.25,0.83 for "
                    "the shipped weights (detector.infer.DEFAULT_SCALES), 1 for others; 1 alone takes "
                    "a quarter of the shipped read's time].")
+@click.option("--fuse-boxes/--best-boxes", default=False, show_default=True,
+              help="Each kept box's sides: the score-weighted mean of its views' best boxes, or its "
+                   "best view's alone (scores and the boxes kept are the same either way).")
 def detect(data: Path, out: Path, weights: Path | None, split: str, part: str, conf: float, iou: float,
-           batch: int, threads: int, mirror: bool, scales: str | None) -> None:
+           batch: int, threads: int, mirror: bool, scales: str | None, fuse_boxes: bool) -> None:
     """Detect Car, Pedestrian and Cyclist in every frame of DATA's split; boxes are mapped back
     from the letterboxed input to exact image pixels; 3D fields are the format's placeholders."""
     import torch
@@ -47,7 +50,7 @@ def detect(data: Path, out: Path, weights: Path | None, split: str, part: str, c
                                  param_hint="--scales") from None
     try:
         res = detect_dataset(data, out, weights, None if split == "all" else split, part, batch, conf, iou,
-                             mirror=mirror, scales=factors)
+                             mirror=mirror, scales=factors, fuse_boxes=fuse_boxes)
     except (KittiFormatError, ValueError, FileNotFoundError) as e:
         raise click.ClickException(str(e)) from None
     click.echo(f"{sum(len(v) for v in res.values())} detections in {len(res)} frames written to {out}")

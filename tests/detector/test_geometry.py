@@ -149,6 +149,22 @@ def test_postprocess_over_two_views_scores_each_box_by_the_views_mean():
     np.testing.assert_allclose(one[:, 4], [0.9, 0.8, 0.4], atol=1e-6)  # one view: scores as they are
 
 
+def test_fused_boxes_are_the_score_weighted_mean_of_each_views_best():
+    """Three views of one car: view 0 at x 40-60 (0.8) and a weaker box 2 px to the right (0.3,
+    suppressed, not its view's best); view 1 at x 43-63 (0.4); view 2 sees nothing there. A second
+    car in view 2 alone keeps its own box. Scores and order are those of the plain read."""
+    def row(cx, score):
+        return [cx, 40, 20, 10, score, 1.0, 0.0, 0.0]
+    pred = torch.tensor([[row(50, 0.8), row(52, 0.3), row(53, 0.4), row(300, 0.6)]])
+    view = torch.tensor([0, 0, 1, 2])
+    plain = postprocess(pred, conf_threshold=0.1, iou_threshold=0.5, views=view)[0].numpy()
+    fused = postprocess(pred, conf_threshold=0.1, iou_threshold=0.5, views=view, fuse_boxes=True)[0].numpy()
+    x1 = (0.8 * 40 + 0.4 * 43) / 1.2  # 41.0
+    np.testing.assert_allclose(fused, [[x1, 35, x1 + 20, 45, 0.4, 0], [290, 35, 310, 45, 0.2, 0]], atol=1e-5)
+    np.testing.assert_array_equal(fused[:, 4:], plain[:, 4:])
+    np.testing.assert_allclose(plain[:, :4], [[40, 35, 60, 45], [290, 35, 310, 45]], atol=1e-5)
+
+
 def test_box_iou_matrix():
     a = torch.tensor([[0.0, 0, 2, 2], [0, 0, 1, 1]])
     b = torch.tensor([[1.0, 1, 3, 3], [5, 5, 6, 6]])
