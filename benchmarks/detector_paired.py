@@ -28,6 +28,8 @@ def main() -> None:
                     help="a run's result folder; the first is the one the others are paired with")
     parser.add_argument("--classes", default="Car,Pedestrian,Cyclist")
     parser.add_argument("--draws", type=int, default=DRAWS)
+    parser.add_argument("--decimals", type=int, default=1,
+                        help="digits after the point (a rule on an interval's end may need two)")
     args = parser.parse_args()
     if not args.split.is_file():
         raise SystemExit(f"--split {args.split}: no such file")
@@ -41,7 +43,7 @@ def main() -> None:
     gt = load_annotations(args.gt, ids)
     classes = args.classes.split(",")
     boot = bootstrap_ap(gt, runs, classes=classes, draws=args.draws, progress=True)
-    first = next(iter(runs))
+    first, n = next(iter(runs)), args.decimals
     print(f"2D AP|R40 moderate over {args.draws} bootstrap draws of the {len(ids)} frames of "
           f"{args.split}: each run's 95 % interval, and the paired 95 % interval of its difference "
           f"to {first}\n")
@@ -55,8 +57,8 @@ def main() -> None:
             diff = ""
             if name != first:
                 d = ap - point[first][cls]["2d"]["R40"][1]
-                diff = "{:+.1f} [{:+.1f}, {:+.1f}]".format(d, *b.difference(name, first))
-            print(f"| {cls} | {name} | {ap:.1f} [{lo:.1f}, {hi:.1f}] | {diff} |")
+                diff = "{:+.{n}f} [{:+.{n}f}, {:+.{n}f}]".format(d, *b.difference(name, first), n=n)
+            print(f"| {cls} | {name} | {ap:.{n}f} [{lo:.{n}f}, {hi:.{n}f}] | {diff} |")
 
 
 if __name__ == "__main__":
