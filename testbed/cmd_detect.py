@@ -32,7 +32,8 @@ import click
                    "a quarter of the shipped read's time].")
 @click.option("--fuse-boxes/--best-boxes", default=False, show_default=True,
               help="Each kept box's sides: the score-weighted mean of its views' best boxes, or its "
-                   "best view's alone (scores and the boxes kept are the same either way).")
+                   "best view's alone (scores and the boxes kept are the same either way; a read "
+                   "of one view, --no-mirror --scales 1, has nothing to fuse).")
 def detect(data: Path, out: Path, weights: Path | None, split: str, part: str, conf: float, iou: float,
            batch: int, threads: int, mirror: bool, scales: str | None, fuse_boxes: bool) -> None:
     """Detect Car, Pedestrian and Cyclist in every frame of DATA's split; boxes are mapped back
