@@ -98,14 +98,12 @@ def postprocess(pred: torch.Tensor, conf_threshold: float = 0.001, iou_threshold
         if views > 1:
             keep, s_keep, fused = _view_mean_scores(s, view, *batched_nms_clusters(boxes, s, j, iou_threshold),
                                                     views, boxes if fuse_boxes else None)
-            if fused is not None:
-                boxes = boxes.clone()
-                boxes[keep] = fused
         else:
-            keep = batched_nms(boxes, s, j, iou_threshold)
+            keep, fused = batched_nms(boxes, s, j, iou_threshold), None
             s_keep = s[keep]
         keep, s_keep = keep[:max_det], s_keep[:max_det]
-        out.append(torch.cat((boxes[keep], s_keep[:, None], j[keep, None].to(boxes.dtype)), 1))
+        kept = boxes[keep] if fused is None else fused[:max_det]
+        out.append(torch.cat((kept, s_keep[:, None], j[keep, None].to(boxes.dtype)), 1))
     return out
 
 
