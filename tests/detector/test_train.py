@@ -79,6 +79,15 @@ def test_detect_cli_writes_kitti_results(overfit_run, tmp_path):
     d = Detector.load(run / "weights.pt", mirror=False).detect([KittiDataset(root).image(fid)], 0.3)[0]
     single = read_label(tmp_path / "single" / f"{fid}.txt")
     np.testing.assert_allclose([o.bbox for o in single], d[:, :4], atol=1e-2)
+    # --fuse-boxes: the two reads' boxes fused, as Detector(fuse_boxes=True) gives them
+    res = CliRunner().invoke(cli, ["detect", "--data", str(root), "--out", str(tmp_path / "fused"),
+                                   "--weights", str(run / "weights.pt"), "--split", "train", "--conf", "0.3",
+                                   "--fuse-boxes"])
+    assert res.exit_code == 0, res.output
+    d = Detector.load(run / "weights.pt", fuse_boxes=True).detect([KittiDataset(root).image(fid)], 0.3)[0]
+    fused = read_label(tmp_path / "fused" / f"{fid}.txt")
+    np.testing.assert_allclose([o.bbox for o in fused], d[:, :4], atol=1e-2)
+    np.testing.assert_allclose([o.score for o in fused], [o.score for o in objs], atol=1e-4)
 
 
 def test_resume_is_exact(tmp_path):
