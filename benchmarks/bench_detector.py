@@ -20,7 +20,7 @@ import numpy as np
 import torch
 
 from detector.boxes import Letterbox
-from detector.infer import DEFAULT_SCALES, DEFAULT_WEIGHTS, Detector
+from detector.infer import DEFAULT_SCALES, DEFAULT_WEIGHTS, Detector, parse_scales
 from detector.model import count_parameters
 from detector.nms import postprocess
 
@@ -91,7 +91,7 @@ def main() -> None:
         img, src = np.random.default_rng(0).integers(0, 256, (375, 1242, 3), dtype=np.uint8), "uniform noise"
     if img.shape[:2] != (375, 1242):
         raise SystemExit(f"{src} is {img.shape[1]}x{img.shape[0]}, not 1242x375")
-    scales = tuple(float(v) for v in a.scales.split(","))
+    scales = parse_scales(a.scales)
     t = time_inference(det, a.runs, img, scales)
     print(f"weights {a.weights}: {sum(map(count_parameters, det.models)) / 1e6:.2f} M parameters (BN folded), "
           f"input {w}x{h}, {a.threads} thread(s), median of {a.runs}, image: {src}")

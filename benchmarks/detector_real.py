@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from detector.augment import pairwise_iou
-from detector.infer import default_scales, detect_dataset
+from detector.infer import default_scales, detect_dataset, parse_scales
 from kitti.dataset import KittiDataset
 from kitti.eval import ap_2d, evaluate
 from kitti.eval.bootstrap import DRAWS, bootstrap_ap
@@ -175,7 +175,7 @@ def main() -> None:
     near, equal, objects, preds = [], [], [], {}
     modes = {"on": [True], "off": [False], "both": [False, True]}[args.mirror]
     split = Path(args.data) / "ImageSets" / f"{args.split}.txt" if args.split else None
-    scale_sets = [tuple(float(v) for v in c.split(",")) for c in args.scales] if args.scales else [None]
+    scale_sets = [parse_scales(c) for c in args.scales] if args.scales else [None]
     runs = [(w, m, c or default_scales(w)) for w in args.weights for m in modes for c in scale_sets]
     for i, (w, mirror, scales) in enumerate(runs):
         pred_dir = args.out / f"pred_{i}"

@@ -26,6 +26,14 @@ DEFAULT_WEIGHTS = Path(__file__).resolve().parent / "weights" / "flexinet_small.
 DEFAULT_SCALES = (1.0, 1.25, 0.83)
 
 
+def parse_scales(text: str) -> tuple[float, ...]:
+    """Input scales written as on the command line ("1,1.25,0.83")."""
+    try:
+        return tuple(float(v) for v in text.split(","))
+    except ValueError:
+        raise ValueError(f"not a comma-separated list of numbers: {text!r}") from None
+
+
 def default_scales(weights: str | Path | None) -> tuple[float, ...]:
     """The read a weight file gets when none is asked: DEFAULT_SCALES for the shipped file, the
     input size alone (1.0,) for any other."""

@@ -40,15 +40,14 @@ def detect(data: Path, out: Path, weights: Path | None, split: str, part: str, c
     from the letterboxed input to exact image pixels; 3D fields are the format's placeholders."""
     import torch
 
-    from detector.infer import detect_dataset
+    from detector.infer import detect_dataset, parse_scales
     from kitti.errors import KittiFormatError
 
     torch.set_num_threads(threads)
     try:
-        factors = None if scales is None else tuple(float(v) for v in scales.split(","))
-    except ValueError:
-        raise click.BadParameter(f"not a comma-separated list of numbers: {scales!r}",
-                                 param_hint="--scales") from None
+        factors = None if scales is None else parse_scales(scales)
+    except ValueError as e:
+        raise click.BadParameter(str(e), param_hint="--scales") from None
     try:
         res = detect_dataset(data, out, weights, None if split == "all" else split, part, batch, conf, iou,
                              mirror=mirror, scales=factors, fuse_boxes=fuse_boxes)
