@@ -68,12 +68,15 @@ def resampled(objects: Mapping[str, Sequence[Object3D]], ids: Sequence[str],
 def bootstrap_ap(gt: Mapping[str, Sequence[Object3D]],
                  results: Mapping[str, Mapping[str, Sequence[Object3D]]],
                  classes: Sequence[str] = ("Car",), metrics: Sequence[str] = ("2d",),
-                 draws: int = DRAWS, seed: int = SEED,
-                 progress: bool = False) -> dict[tuple[str, str, bool], APDraws]:
+                 draws: int = DRAWS, seed: int = SEED, progress: bool = False,
+                 measured: bool = False) -> dict[tuple[str, str, bool], APDraws]:
     """AP|R40 (easy, moderate, hard) of each of `results` ({name: {frame id: detections}}) against
     `gt` over `draws` draws of gt's frames, the same draws for every result set; keyed by (class,
     metric, loose): strict IoU, and for bird's-eye and 3D also the loose one (0.5 for Car). A
-    metric the results cannot be scored on (3D without 3D boxes) is left out.
+    metric the results cannot be scored on (3D without 3D boxes) is left out. `measured`: AP|R40
+    on the measured recall (`ap.Curve.r40_measured`) instead of the devkit's, for sets with fewer
+    than 41 truth boxes, where the devkit's figure is capped at (n - 1) / 40 and the cap moves
+    with the number of boxes a draw holds.
 
     Each draw is scored exactly as `evaluate` scores the drawn frames (`resampled`): each result
     set is packed and its overlaps computed once, and a draw takes its frames' rows and overlaps
@@ -96,31 +99,41 @@ def bootstrap_ap(gt: Mapping[str, Sequence[Object3D]],
             q, slots, rows = p.take(picks)
             q_ovs, q_dc = {m: v[slots] for m, v in ovs.items()}, dc_ov[rows]
             for c in classes:
-                strict, loose_ap, _ = class_ap(q, c, metrics, q_ovs, q_dc)
+                strict, loose, _ = class_ap(q, c, metrics, q_ovs, q_dc)
                 for m in metrics:
-                    if m in strict.ap:
-                        ap[c, m, False][d, j] = strict.ap[m]["R40"]
-                    if m in loose_ap:
-                        ap[c, m, True][d, j] = loose_ap[m]["R40"]
+                    for is_loose, block in ((False, strict), (True, loose)):
+                        if m in block.ap:
+                            ap[c, m, is_loose][d, j] = (block.measured[m] if measured
+                                                        else block.ap[m]["R40"])
     return {k: APDraws(names, k[0], k[1], a) for k, a in ap.items() if not np.isnan(a).any()}
 
 
 def interval_table(gt: Mapping[str, Sequence[Object3D]], dt: Mapping[str, Sequence[Object3D]],
                    res: EvalResult, draws: int = DRAWS) -> tuple[str, dict]:
     """`testbed evaluate --bootstrap`: every AP|R40 of `res` (the evaluation of `dt` against
-    `gt`, strict IoU) with its 95 % interval over draws of the frames, as a printout and JSON."""
+    `gt`, strict IoU) with its 95 % interval over draws of the frames, as a printout and JSON; for
+    a class with fewer than 41 truth boxes in a difficulty (`EvalResult.capped`), the AP|R40 on
+    the measured recall too, over the same draws."""
     metrics = sorted({m for c in res.classes for m in res.ap[c]}, key=list(METRICS).index)
-    boot = bootstrap_ap(gt, {"pred": dt}, res.classes, metrics, draws=draws, progress=True)
+    head = "class       metric  easy                   moderate               hard"
     lines = [f"AP|R40 with its {LEVEL:.0%} interval over {draws} bootstrap draws of the {len(gt)} "
-             "frames (a frame's labels and detections together):", "",
-             "class       metric  easy                   moderate               hard"]
-    out: dict = {"draws": draws, "level": LEVEL, "seed": SEED, "R40": {}}
-    for (cls, m, loose), b in boot.items():
-        if loose:
+             "frames (a frame's labels and detections together):", "", head]
+    out: dict = {"draws": draws, "level": LEVEL, "seed": SEED}
+    few = [c for c in res.classes if res.capped(c)]
+    for key, classes, measured in (("R40", res.classes, False), ("R40_measured_recall", few, True)):
+        if not classes:
             continue
-        cells = [b.interval("pred", k) for k in range(3)]
-        point = res.ap[cls][m]["R40"]
-        lines.append(f"{cls:<11s} {m:<7s} " + " ".join(
-            f"{p:5.2f} [{lo:5.2f}, {hi:5.2f}]" for p, (lo, hi) in zip(point, cells)))
-        out["R40"].setdefault(cls, {})[m] = [list(c) for c in cells]
+        if measured:
+            lines += ["", "On the measured recall (classes the devkit's AP|R40 caps):", "", head]
+        boot = bootstrap_ap(gt, {"pred": dt}, classes, metrics, draws=draws, progress=True,
+                            measured=measured)
+        out[key] = {}
+        for (cls, m, loose), b in boot.items():
+            if loose:
+                continue
+            cells = [b.interval("pred", k) for k in range(3)]
+            point = res.measured[cls]["strict"][m] if measured else res.ap[cls][m]["R40"]
+            lines.append(f"{cls:<11s} {m:<7s} " + " ".join(
+                f"{p:5.2f} [{lo:5.2f}, {hi:5.2f}]" for p, (lo, hi) in zip(point, cells)))
+            out[key].setdefault(cls, {})[m] = [list(c) for c in cells]
     return "\n".join(lines) + "\n", out

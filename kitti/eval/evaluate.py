@@ -50,12 +50,14 @@ def _absent(p: Packed, cls: str, metrics: Sequence[str]) -> dict:
 @dataclass
 class _Block:
     """AP {metric: {"R11": [e, m, h], "R40": [...]}}, recall with all detections {metric: [e, m, h]},
-    evaluated truth per difficulty and the precision curves {metric: {difficulty: [41]}}."""
+    evaluated truth per difficulty, the precision curves {metric: {difficulty: [41]}} and AP|R40 on
+    the measured recall {metric: [e, m, h]} (`ap.Curve.r40_measured`)."""
 
     ap: dict
     recall: dict
     n_gt: list
     curves: dict
+    measured: dict
 
 
 def _ap_block(p: Packed, cls: str, metrics: Sequence[str], ovs: dict, dc_ov: np.ndarray,
@@ -63,7 +65,8 @@ def _ap_block(p: Packed, cls: str, metrics: Sequence[str], ovs: dict, dc_ov: np.
               overlap: float | None = None) -> _Block:
     """Every difficulty and metric of one class; AOS rides on the 2D matching. `overlap`, when
     given, replaces the protocol's IoU threshold (diagnosis only, see `ap_2d`)."""
-    b = _Block({m: {"R11": [], "R40": []} for m in metrics}, {m: [] for m in metrics}, [], {})
+    b = _Block({m: {"R11": [], "R40": []} for m in metrics}, {m: [] for m in metrics}, [], {},
+               {m: [] for m in metrics})
     for d in range(len(DIFFICULTIES)):
         ig_gt, ig_dt = clean(cls, d, p.gt.type, p.gt.bbox, p.gt.occluded, p.gt.truncated,
                              p.dt.type, p.dt.bbox)
@@ -76,10 +79,11 @@ def _ap_block(p: Packed, cls: str, metrics: Sequence[str], ovs: dict, dc_ov: np.
             with_aos = m == "2d" and "aos" in metrics
             c = curve(p, ovs[m], ig_gt, ig_dt, min_overlap(cls, m, loose) if overlap is None else overlap,
                       dc_ov if m == "2d" else None, with_aos)
-            pairs = [(m, c.precision)] + ([("aos", c.aos)] if with_aos else [])
-            for name, vals in pairs:
+            pairs = [(m, c.precision, c.precision_at)] + ([("aos", c.aos, c.aos_at)] if with_aos else [])
+            for name, vals, at in pairs:
                 b.ap[name]["R11"].append(c.r11(vals))
                 b.ap[name]["R40"].append(c.r40(vals))
+                b.measured[name].append(c.r40_measured(at))
                 b.recall[name].append(c.recall)
                 b.curves.setdefault(name, {})[DIFFICULTIES[d]] = vals.tolist()
     return b
@@ -110,11 +114,11 @@ def overlaps_needed(metrics: Sequence[str]) -> list[str]:
 def class_ap(p: Packed, cls: str, metrics: Sequence[str], ovs: dict, dc_ov: np.ndarray
              ) -> tuple[_Block, dict, dict]:
     """One class: the strict block over the metrics its detections support (with 2D for AOS),
-    the loose AP of bird's-eye and 3D, and what the detections cannot be scored on."""
+    the loose block of bird's-eye and 3D, and what the detections cannot be scored on."""
     absent = _absent(p, cls, metrics)
     ms = _metrics_for(absent, metrics)
     strict = _ap_block(p, cls, ms, ovs, dc_ov, False, None)
-    loose = _ap_block(p, cls, [m for m in ms if m in ("bev", "3d")], ovs, dc_ov, True, None).ap
+    loose = _ap_block(p, cls, [m for m in ms if m in ("bev", "3d")], ovs, dc_ov, True, None)
     return strict, loose, absent
 
 
@@ -159,13 +163,15 @@ def evaluate(gt: Mapping[str, Sequence[Object3D]], dt: Mapping[str, Sequence[Obj
     ovs = {m: pair_overlaps(p, m) for m in ("2d", "bev", "3d") if m in need or m == "3d"}
     dc_ov = dontcare_overlap(p.dt, p.dc)
 
-    ap, ap_loose, n_gt, recall, precision, absent = {}, {}, {}, {}, {}, {}
+    ap, ap_loose, n_gt, recall, precision, absent, measured = {}, {}, {}, {}, {}, {}, {}
     for cls in _progress(classes, progress, "AP"):
-        b, ap_loose[cls], ab = class_ap(p, cls, metrics, ovs, dc_ov)
+        b, loose, ab = class_ap(p, cls, metrics, ovs, dc_ov)
+        ap_loose[cls] = loose.ap
         if ab:
             absent[cls] = ab
         keep = [m for m in b.ap if m in metrics]
         ap[cls] = {m: b.ap[m] for m in keep}
+        measured[cls] = {"strict": {m: b.measured[m] for m in keep}, "loose": loose.measured}
         recall[cls] = {m: b.recall[m] for m in keep}
         precision[cls] = {m: b.curves[m] for m in keep}
         n_gt[cls] = b.n_gt
@@ -182,7 +188,7 @@ def evaluate(gt: Mapping[str, Sequence[Object3D]], dt: Mapping[str, Sequence[Obj
                 "centre_gate": f"max({breakdown.CENTRE_GATE_M} m, {breakdown.CENTRE_GATE_FRACTION:.0%} "
                                "of the truth's ground distance)"}
     return EvalResult(classes, ap, ap_loose, n_gt, recall, precision, absent, bins_out, errors, vol,
-                      settings)
+                      settings, measured)
 
 
 def ap_2d(gt: Mapping[str, Sequence[Object3D]], dt: Mapping[str, Sequence[Object3D]], cls: str,

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from .ap import devkit_cap
 from .protocol import min_overlap
 
 _LABEL = {"2d": "bbox", "bev": "bev ", "3d": "3d  ", "aos": "aos "}
@@ -44,13 +45,21 @@ class EvalResult:
     errors: dict = field(default_factory=dict)
     volumetric: dict = field(default_factory=dict)
     settings: dict = field(default_factory=dict)
+    # {class: {"strict": {metric: [e, m, h]}, "loose": {...}}}: AP|R40 on the measured recall
+    # (kitti.eval.ap: the devkit's AP|R40 is capped at (n - 1) / 40 up to 40 truth boxes)
+    measured: dict = field(default_factory=dict)
+
+    def capped(self, cls: str) -> bool:
+        """Whether some difficulty of `cls` holds fewer truth boxes than the devkit's AP|R40 needs
+        to reach 100 (and more than none)."""
+        return any(0 < n and devkit_cap(n) < 100.0 for n in self.n_gt.get(cls, []))
 
     def to_json(self) -> dict:
         """Strict JSON: a non-finite number (an open-ended bin edge such as inf) becomes null."""
         return _finite({"ap": self.ap, "ap_loose": self.ap_loose, "n_gt": self.n_gt, "recall": self.recall,
                 "absent": self.absent, "range_bins": self.range_bins, "errors": self.errors,
                 "volumetric": self.volumetric, "precision": self.precision,
-                "settings": self.settings})
+                "settings": self.settings, "ap_r40_measured_recall": self.measured})
 
     def table(self) -> str:
         """The printout of the popular Python port of the devkit, R11 ("AP") then R40 blocks."""
@@ -64,6 +73,8 @@ class EvalResult:
                     for m in ("2d", "bev", "3d", "aos"):
                         if m in ap:
                             lines.append(f"{_LABEL[m]} AP:" + ", ".join(_fmt(v) for v in ap[m][key]))
+            if self.capped(cls) and cls in self.measured:
+                lines += self._measured_lines(cls, strict, loose)
             for m, why in self.absent.get(cls, {}).items():
                 lines.append(f"({cls} {m}: not evaluated, {why})")
         if self.range_bins:
@@ -106,4 +117,18 @@ class EvalResult:
                              f"{_fmt(v['location_error']):>7}"
                              + "".join(f"{_fmt(v[k]):>6}" for k in ("L", "W", "H", "XC", "YC", "ZC")))
         return "\n".join(lines) + "\n"
+
+    def _measured_lines(self, cls: str, strict: list[float], loose: list[float]) -> list[str]:
+        n = self.n_gt[cls]
+        caps = ", ".join(f"{devkit_cap(k):.2f}" for k in n)
+        lines = [f"({cls}: {n[0]} / {n[1]} / {n[2]} truth boxes, easy / moderate / hard: the devkit's "
+                 f"AP_R40 above cannot exceed {caps}; on the measured recall:)"]
+        for blocks, ovs in ((self.measured[cls]["strict"], strict), (self.measured[cls]["loose"], loose)):
+            if not blocks:
+                continue
+            lines.append(f"{cls} AP_R40@{ovs[0]:.2f}, {ovs[1]:.2f}, {ovs[2]:.2f} on the measured recall:")
+            for m in ("2d", "bev", "3d", "aos"):
+                if m in blocks:
+                    lines.append(f"{_LABEL[m]} AP:" + ", ".join(_fmt(v) for v in blocks[m]))
+        return lines
 
