@@ -112,7 +112,7 @@ def overlaps_needed(metrics: Sequence[str]) -> list[str]:
 
 
 def class_ap(p: Packed, cls: str, metrics: Sequence[str], ovs: dict, dc_ov: np.ndarray
-             ) -> tuple[_Block, dict, dict]:
+             ) -> tuple[_Block, _Block, dict]:
     """One class: the strict block over the metrics its detections support (with 2D for AOS),
     the loose block of bird's-eye and 3D, and what the detections cannot be scored on."""
     absent = _absent(p, cls, metrics)
@@ -124,12 +124,14 @@ def class_ap(p: Packed, cls: str, metrics: Sequence[str], ovs: dict, dc_ov: np.n
 
 def _range_bins(p: Packed, classes: list[str], metrics: list[str], absent: dict, ovs: dict,
                 dc_ov: np.ndarray, edges: np.ndarray, progress: bool) -> dict:
-    """Strict AP per distance bin; objects outside the bin are ignored, not deleted."""
+    """Strict AP per distance bin, the devkit's and on the measured recall (`ap.Curve.r40_measured`);
+    objects outside the bin are ignored, not deleted."""
     gt_bin, dt_bin = breakdown.bin_index(p.gt.distance, edges), breakdown.bin_index(p.dt.distance, edges)
     out = {"edges": edges.tolist(), "distance": "ground (camera x-z) distance of the location",
            "bins": []}
     for k in _progress(list(range(len(edges) - 1)), progress, "range bins"):
-        entry = {"range": [float(edges[k]), float(edges[k + 1])], "ap": {}, "n_gt": {}}
+        entry = {"range": [float(edges[k]), float(edges[k + 1])], "ap": {}, "n_gt": {},
+                 "ap_r40_measured": {}}
         for cls in classes:
             ms = _metrics_for(absent.get(cls, {}), metrics)
             b = _ap_block(p, cls, ms, ovs, dc_ov, False, (gt_bin == k, dt_bin == k))
@@ -137,6 +139,9 @@ def _range_bins(p: Packed, classes: list[str], metrics: list[str], absent: dict,
             # no truth in the bin: AP is undefined, reported as None rather than 0
             entry["ap"][cls] = {m: {key: [v if n else None for v, n in zip(vals, b.n_gt)]
                                     for key, vals in b.ap[m].items()} for m in ms if m in metrics}
+            # a bin holds few truth boxes: the devkit's AP|R40 there is mostly its count's cap
+            entry["ap_r40_measured"][cls] = {m: [v if n else None for v, n in zip(b.measured[m], b.n_gt)]
+                                             for m in ms if m in metrics}
         out["bins"].append(entry)
     return out
 

@@ -107,10 +107,13 @@ def test_pool_workers_start_with_one_blas_thread_each(monkeypatch):
 
 def _ev(ap3d_mod: float) -> dict:
     block = {"3d": {"R40": [90.0, ap3d_mod, 50.0], "R11": [91.0, 80.0, 51.0]}}
+    measured = {"3d": [100.0, ap3d_mod + 20, 95.0]}
     return {"ap": {"Car": block}, "ap_loose": {"Car": block}, "n_gt": {"Car": [3, 5, 6]},
-            "range_bins": {"bins": [{"range": [0, 20], "n_gt": {"Car": [1, 2, 2]}, "ap": {"Car": block}},
+            "ap_r40_measured_recall": {"Car": {"strict": measured, "loose": measured}},
+            "range_bins": {"bins": [{"range": [0, 20], "n_gt": {"Car": [1, 2, 2]}, "ap": {"Car": block},
+                                     "ap_r40_measured": {"Car": measured}},
                                     {"range": [20, math.inf], "n_gt": {"Car": [0, 0, 0]},
-                                     "ap": {"Car": block}}]}}
+                                     "ap": {"Car": block}, "ap_r40_measured": {"Car": measured}}]}}
 
 
 def test_report_rows_and_tables():
@@ -124,8 +127,12 @@ def test_report_rows_and_tables():
     table = summary_table(rows, "Car", "3d")
     assert "| gt | fit | hdl64e 64 beams | 90.00 | 70.00 | 50.00 | 3 / 5 / 6 |" in table
     assert "| gt | mono | no LiDAR | 90.00 | 30.00 | 50.00 | 3 / 5 / 6 |" in table
-    # a bin without truth shows '-', not a number
-    assert "| fit | hdl64e 64 beams | 70.0 | - |" in range_table(rows, "Car", "3d", "gt")
+    assert {(r["method"], r["difficulty"], r["ap_r40_measured"]) for r in overall} >= {
+        ("fit", "moderate", "90.0000"), ("mono", "moderate", "50.0000")}
+    # by distance: the measured recall's AP (its bins hold few cars); a bin without truth shows '-'
+    table = range_table(rows, "Car", "3d", "gt")
+    assert "| | truth boxes | 2 | 0 |" in table
+    assert "| fit | hdl64e 64 beams | 90.0 | - |" in table
 
 
 def test_weather_axis_rescans_the_same_worlds_per_weather(tmp_path):

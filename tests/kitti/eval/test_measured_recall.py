@@ -65,3 +65,15 @@ def test_printout_and_bootstrap_give_the_measured_figure_only_where_the_devkit_c
     big = cars(41)
     _, doc = interval_table(big, perfect(big), evaluate(big, perfect(big), classes=["Car"]), draws=20)
     assert "R40_measured_recall" not in doc
+
+
+def test_distance_bins_carry_the_measured_figure():
+    # 14 perfect hits 30-37 m away (five a frame: x = 0..24 m at z = 30 m), none in the other bin:
+    # the bin's devkit AP|R40 is its count's cap, 32.5; on the measured recall 100; the empty bin
+    # reads None
+    gt = cars(14, frame_size=5)
+    res = evaluate(gt, perfect(gt), classes=["Car"], range_bins=[0, 40, 80])
+    near, far = res.range_bins["bins"]
+    assert near["ap"]["Car"]["3d"]["R40"] == [pytest.approx(32.5, abs=1e-4)] * 3
+    assert near["ap_r40_measured"]["Car"]["3d"] == [100.0] * 3
+    assert far["ap_r40_measured"]["Car"]["3d"] == [None] * 3
