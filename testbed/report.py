@@ -158,8 +158,10 @@ def range_table(rows: list[dict], cls: str, metric: str, boxes: str) -> str:
     return "\n".join(out)
 
 
-def _plot_by_range(sel: list[dict], value: str, ylabel: str, path: Path, ylim=None) -> None:
-    """One panel per method x boxes, one line per LiDAR configuration, `value` against distance."""
+def _plot_by_range(sel: list[dict], value: str, ylabel: str, path: Path, ylim=None,
+                   counts: dict[float, str] | None = None) -> None:
+    """One panel per method x boxes, one line per LiDAR configuration, `value` against distance;
+    `counts` (bin start: truth boxes) labels each bin with how many cars its point rests on."""
     panels = list(dict.fromkeys((r["method"], r["boxes"]) for r in sel))
     if not panels:
         return
@@ -175,7 +177,9 @@ def _plot_by_range(sel: list[dict], value: str, ylabel: str, path: Path, ylim=No
             pts.sort()
             ax.plot([p[0] for p in pts], [p[1] for p in pts], marker="o", ms=3, label=label)
         ax.set_title(f"{method}, {boxes} boxes", fontsize=9)
-        ax.set_xlabel("distance bin start (m)")
+        ax.set_xlabel("distance bin start (m)" + ("\n(truth boxes in the bin)" if counts else ""))
+        if counts:
+            ax.set_xticks(sorted(counts), [f"{lo:g}\n({counts[lo]})" for lo in sorted(counts)], fontsize=7)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=6)
     axes[0][0].set_ylabel(ylabel)
@@ -189,8 +193,9 @@ def plot_ap_vs_range(rows: list[dict], cls: str, metric: str, path: Path) -> Non
     sel = [r for r in rows if r["class"] == cls and r["metric"] == metric and r["iou"] == "strict"
            and r["difficulty"] == "moderate" and r["range_m"] != "all" and r["ap_r40_measured"]
            and int(r["n_gt"]) > 0]
+    counts = {float(r["range_m"].split("-")[0].rstrip("+")): r["n_gt"] for r in sel}
     _plot_by_range(sel, "ap_r40_measured", f"{cls} {metric.upper()} AP|R40 moderate,\nmeasured recall",
-                   path, (0, 102))
+                   path, (0, 102), counts)
 
 
 def plot_errors_vs_range(err: list[dict], cls: str, path: Path, match: str = "centre") -> None:
