@@ -138,18 +138,19 @@ def interval_rows(ds: KittiDataset, ids: list[str], preds: dict[str, dict]) -> l
     """Each run's moderate Car AP with its 95 % interval over draws of the frames, and the paired
     interval of its difference to the first run (kitti.eval.bootstrap)."""
     gt = {fid: ds.labels(fid) for fid in ids}
-    devkit, measured = (bootstrap_ap(gt, preds, measured=m)["Car", "2d", False] for m in (False, True))
-    first = devkit.names[0]
+    boot = bootstrap_ap(gt, preds)["Car", "2d", False]
+    first = boot.names[0]
     rows = [f"Car 2D AP|R40 moderate over {DRAWS} bootstrap draws of the {len(ids)} frames (a frame's "
             f"labels and detections together): its 95 % interval, and the paired 95 % interval of "
             f"its difference to {first}, by the devkit and on the measured recall:", "",
             "| weights | 95 % interval | minus the first run | on the measured recall | minus the first run |",
             "|---|---|---|---|---|"]
-    for name in devkit.names:
+    for name in boot.names:
         cells = []
-        for draws in (devkit, measured):
-            diff = "" if name == first else "{:+.1f} to {:+.1f}".format(*draws.difference(name, first))
-            cells += ["{:.1f} to {:.1f}".format(*draws.interval(name)), diff]
+        for measured in (False, True):
+            diff = "" if name == first else "{:+.1f} to {:+.1f}".format(
+                *boot.difference(name, first, measured=measured))
+            cells += ["{:.1f} to {:.1f}".format(*boot.interval(name, measured=measured)), diff]
         rows.append(f"| {name} | " + " | ".join(cells) + " |")
     return rows
 

@@ -36,21 +36,30 @@ def central_interval(values: np.ndarray) -> tuple[float, float]:
 
 @dataclass(frozen=True)
 class APDraws:
-    """AP|R40 ([draw, result set, difficulty]) of each result set over the same draws of frames."""
+    """AP|R40 ([draw, result set, difficulty]) of each result set over the same draws of frames,
+    the devkit's and on the measured recall (`ap.Curve.r40_measured`: for sets of 40 or fewer
+    truth boxes, where the devkit's figure is capped at (n - 1) / 40 and the cap moves with the
+    number of boxes a draw holds)."""
 
     names: list[str]
     cls: str
     metric: str
     ap: np.ndarray
+    measured: np.ndarray
 
-    def interval(self, name: str, difficulty: int = 1) -> tuple[float, float]:
+    def _of(self, measured: bool) -> np.ndarray:
+        return self.measured if measured else self.ap
+
+    def interval(self, name: str, difficulty: int = 1, measured: bool = False) -> tuple[float, float]:
         """The central 95 % of `name`'s AP over the draws."""
-        return central_interval(self.ap[:, self.names.index(name), difficulty])
+        return central_interval(self._of(measured)[:, self.names.index(name), difficulty])
 
-    def difference(self, a: str, b: str, difficulty: int = 1) -> tuple[float, float]:
+    def difference(self, a: str, b: str, difficulty: int = 1,
+                   measured: bool = False) -> tuple[float, float]:
         """The central 95 % of AP(a) - AP(b), paired draw by draw."""
         i, j = self.names.index(a), self.names.index(b)
-        return central_interval(self.ap[:, i, difficulty] - self.ap[:, j, difficulty])
+        v = self._of(measured)
+        return central_interval(v[:, i, difficulty] - v[:, j, difficulty])
 
 
 def draw_frames(ids: Sequence[str], draws: int = DRAWS, seed: int = SEED) -> np.ndarray:
@@ -68,15 +77,12 @@ def resampled(objects: Mapping[str, Sequence[Object3D]], ids: Sequence[str],
 def bootstrap_ap(gt: Mapping[str, Sequence[Object3D]],
                  results: Mapping[str, Mapping[str, Sequence[Object3D]]],
                  classes: Sequence[str] = ("Car",), metrics: Sequence[str] = ("2d",),
-                 draws: int = DRAWS, seed: int = SEED, progress: bool = False,
-                 measured: bool = False) -> dict[tuple[str, str, bool], APDraws]:
+                 draws: int = DRAWS, seed: int = SEED,
+                 progress: bool = False) -> dict[tuple[str, str, bool], APDraws]:
     """AP|R40 (easy, moderate, hard) of each of `results` ({name: {frame id: detections}}) against
     `gt` over `draws` draws of gt's frames, the same draws for every result set; keyed by (class,
     metric, loose): strict IoU, and for bird's-eye and 3D also the loose one (0.5 for Car). A
-    metric the results cannot be scored on (3D without 3D boxes) is left out. `measured`: AP|R40
-    on the measured recall (`ap.Curve.r40_measured`) instead of the devkit's, for sets with fewer
-    than 41 truth boxes, where the devkit's figure is capped at (n - 1) / 40 and the cap moves
-    with the number of boxes a draw holds.
+    metric the results cannot be scored on (3D without 3D boxes) is left out.
 
     Each draw is scored exactly as `evaluate` scores the drawn frames (`resampled`): each result
     set is packed and its overlaps computed once, and a draw takes its frames' rows and overlaps
@@ -89,6 +95,7 @@ def bootstrap_ap(gt: Mapping[str, Sequence[Object3D]],
     keys = [(c, m, loose) for c in classes for m in metrics
             for loose in ((False, True) if m in ("bev", "3d") else (False,))]
     ap = {k: np.full((draws, len(names), 3), np.nan) for k in keys}
+    measured = {k: np.full((draws, len(names), 3), np.nan) for k in keys}
     packed = []
     for name in names:
         p = pack(gt, results[name])
@@ -103,9 +110,9 @@ def bootstrap_ap(gt: Mapping[str, Sequence[Object3D]],
                 for m in metrics:
                     for is_loose, block in ((False, strict), (True, loose)):
                         if m in block.ap:
-                            ap[c, m, is_loose][d, j] = (block.measured[m] if measured
-                                                        else block.ap[m]["R40"])
-    return {k: APDraws(names, k[0], k[1], a) for k, a in ap.items() if not np.isnan(a).any()}
+                            ap[c, m, is_loose][d, j] = block.ap[m]["R40"]
+                            measured[c, m, is_loose][d, j] = block.measured[m]
+    return {k: APDraws(names, k[0], k[1], a, measured[k]) for k, a in ap.items() if not np.isnan(a).any()}
 
 
 def interval_table(gt: Mapping[str, Sequence[Object3D]], dt: Mapping[str, Sequence[Object3D]],
@@ -119,19 +126,18 @@ def interval_table(gt: Mapping[str, Sequence[Object3D]], dt: Mapping[str, Sequen
     lines = [f"AP|R40 with its {LEVEL:.0%} interval over {draws} bootstrap draws of the {len(gt)} "
              "frames (a frame's labels and detections together):", "", head]
     out: dict = {"draws": draws, "level": LEVEL, "seed": SEED}
+    boot = bootstrap_ap(gt, {"pred": dt}, res.classes, metrics, draws=draws, progress=True)
     few = [c for c in res.classes if res.capped(c)]
     for key, classes, measured in (("R40", res.classes, False), ("R40_measured_recall", few, True)):
         if not classes:
             continue
         if measured:
             lines += ["", "On the measured recall (classes the devkit's AP|R40 caps):", "", head]
-        boot = bootstrap_ap(gt, {"pred": dt}, classes, metrics, draws=draws, progress=True,
-                            measured=measured)
         out[key] = {}
         for (cls, m, loose), b in boot.items():
-            if loose:
+            if loose or cls not in classes:
                 continue
-            cells = [b.interval("pred", k) for k in range(3)]
+            cells = [b.interval("pred", k, measured) for k in range(3)]
             point = res.measured[cls]["strict"][m] if measured else res.ap[cls][m]["R40"]
             lines.append(f"{cls:<11s} {m:<7s} " + " ".join(
                 f"{p:5.2f} [{lo:5.2f}, {hi:5.2f}]" for p, (lo, hi) in zip(point, cells)))

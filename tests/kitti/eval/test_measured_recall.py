@@ -56,8 +56,8 @@ def test_printout_and_bootstrap_give_the_measured_figure_only_where_the_devkit_c
     text = res.table()
     assert "cannot exceed 32.50, 32.50, 32.50" in text
     assert "bbox AP:100.00, 100.00, 100.00" in text
-    boot = bootstrap_ap(gt, {"p": perfect(gt)}, metrics=["2d"], draws=50, measured=True)
-    assert boot["Car", "2d", False].interval("p") == (100.0, 100.0)  # every draw finds every car
+    boot = bootstrap_ap(gt, {"p": perfect(gt)}, metrics=["2d"], draws=50)
+    assert boot["Car", "2d", False].interval("p", measured=True) == (100.0, 100.0)  # every car found
     _, doc = interval_table(gt, perfect(gt), res, draws=50)
     assert doc["R40_measured_recall"]["Car"]["2d"][1] == [100.0, 100.0]
     forty = cars(40)  # the devkit's cap is 97.5 at 40 truth boxes, 100 from 41
