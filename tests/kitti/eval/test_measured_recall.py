@@ -77,3 +77,6 @@ def test_distance_bins_carry_the_measured_figure():
     assert near["ap"]["Car"]["3d"]["R40"] == [pytest.approx(32.5, abs=1e-4)] * 3
     assert near["ap_r40_measured"]["Car"]["3d"] == [100.0] * 3
     assert far["ap_r40_measured"]["Car"]["3d"] == [None] * 3
+    text = res.table()
+    assert "AP_R40 by distance, on the measured recall" in text
+    assert "Car              0-40     14  100.00  100.00  100.00  100.00" in text
