@@ -46,12 +46,14 @@ def generated(root: Path, frames: int) -> np.ndarray:
         actor = read_scan_info(info_path(root / "training", fid), len(v))["actor_id"]
         rect = calib.lidar_to_rect(v[:, :3].astype(np.float64))
         for a in json.loads((root / "training" / "meta" / f"{fid}.json").read_text())["actors"]:
-            own = rect[actor == a["id"]]
-            if a["class"] != "Car" or a.get("label") != "label" or len(own) < MIN_RETURNS:
+            if a["class"] != "Car" or a.get("label") != "label":
                 continue
-            x, y, z = a["box7"][:3]
-            plane = road.plane_at(x, z)
-            rows.append((np.hypot(x, z), float(height_above(own, plane).min()), _above(road, (x, y, z))))
+            own = rect[actor == a["id"]]
+            if len(own) < MIN_RETURNS:
+                continue
+            bottom = np.array(a["box7"][:3], dtype=np.float64)
+            h = height_above(np.vstack([bottom, own]), road.plane_at(bottom[0], bottom[2]))
+            rows.append((np.hypot(bottom[0], bottom[2]), float(h[1:].min()), float(h[0])))
     return np.array(rows).reshape(-1, 3)
 
 

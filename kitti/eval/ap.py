@@ -37,6 +37,11 @@ def devkit_cap(n_gt: int) -> float:
     return 100.0 * min(max(n_gt - 1, 0), N_SAMPLE_PTS - 1) / (N_SAMPLE_PTS - 1)
 
 
+def capped(n_gt: int) -> bool:
+    """Whether n_gt truth boxes (some, but 40 or fewer) keep the devkit's AP|R40 below 100."""
+    return 0 < n_gt and devkit_cap(n_gt) < 100.0
+
+
 @dataclass
 class Curve:
     """Monotone precision (and orientation similarity) at the 41 recall slots, and at each of the

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from .ap import devkit_cap
+from .ap import capped, devkit_cap
 from .protocol import min_overlap
 
 _LABEL = {"2d": "bbox", "bev": "bev ", "3d": "3d  ", "aos": "aos "}
@@ -52,7 +52,7 @@ class EvalResult:
     def capped(self, cls: str) -> bool:
         """Whether some difficulty of `cls` holds fewer truth boxes than the devkit's AP|R40 needs
         to reach 100 (and more than none)."""
-        return any(0 < n and devkit_cap(n) < 100.0 for n in self.n_gt.get(cls, []))
+        return any(capped(n) for n in self.n_gt.get(cls, []))
 
     def to_json(self) -> dict:
         """Strict JSON: a non-finite number (an open-ended bin edge such as inf) becomes null."""
@@ -112,10 +112,9 @@ class EvalResult:
         metrics = [m for m in ("2d", "bev", "3d", "aos")
                    if any(m in b["ap"].get(c, {}) for b in bins for c in self.classes)]
         head = f"{'class':<11}{'range m':>10}{'n_gt':>7}" + "".join(f"{m:>8}" for m in metrics)
-        capped = any(0 < b["n_gt"][c][1] and devkit_cap(b["n_gt"][c][1]) < 100.0
-                     for b in bins for c in self.classes)
+        few = any(capped(b["n_gt"][c][1]) for b in bins for c in self.classes)
         blocks = [("the devkit's", lambda b, cls, m: b["ap"][cls].get(m, {}).get("R40", [None] * 3)[1])]
-        if capped:
+        if few:
             blocks.append(("on the measured recall, as bins of 40 or fewer truth boxes cap the devkit's",
                            lambda b, cls, m: b["ap_r40_measured"][cls].get(m, [None] * 3)[1]))
         lines = []
