@@ -9,8 +9,13 @@ the share of Cars within IoU 0.7 and 0.5, with the central 95 % over draws of th
 Cars together). Run on a real root and on a generated one, the two trends can be set side by side.
 
     .venv/bin/python benchmarks/beam_trend_paired.py --data ROOT --out DIR [--split S]
-        [--beams 32,16] [--method fit] [--priors net] [--cars moderate|all] [--bins 0,20,45,80]
-        [--draws 1000] [--reuse]
+        [--beams 32,16] [--method fit] [--priors net] [--boxes DETECTIONS] [--cars moderate|all]
+        [--bins 0,20,45,80] [--draws 1000] [--reuse]
+
+`--boxes`: a folder of 2D detections of ROOT (`testbed detect`) lifted instead of the labels'
+boxes, the whole chain: the lifted Car boxes, highest score first, each take the free Car label
+their 2D box overlaps most (2D IoU at least 0.5), as an evaluation assigns them; a Car no box
+matches counts as IoU 0 at every ring count, so it adds nothing to a change.
 
 Writes the reduced roots and the lifted boxes under DIR (`--reuse`: the lifted boxes already
 there) and prints two markdown tables: every Car, then the change of mean IoU by the Car's ground
@@ -27,31 +32,47 @@ import numpy as np
 
 from kitti.dataset import KittiDataset
 from kitti.eval.protocol import outside_difficulty
-from kitti.iou import iou_3d
+from kitti.iou import iou_2d, iou_3d
 from kitti.labels import read_label
 from kitti.reduce import reduce_beams, source_beams_of
 from lifter.pipeline import lift_dataset
 from testbed.stages import sensor_beams
 
 THRESHOLDS = (0.7, 0.5)
+MIN_OVERLAP = 0.5  # 2D IoU for a detection's lifted box to stand for a label (KITTI's Car 2D: 0.7)
 
 
-def car_ious(data: Path, pred: Path, ids: list[str], cars: str
+def matches(labels: list, preds: list, oracle: bool) -> list:
+    """Each label's lifted box or None: the one with its very 2D box (oracle boxes), else, the
+    Car boxes taken highest score first, the free label each overlaps most (at least MIN_OVERLAP)."""
+    if oracle:
+        return [next((p for p in preds if np.allclose(p.bbox, gt.bbox, atol=1e-3)), None) for gt in labels]
+    cars = sorted((p for p in preds if p.type == "Car"), key=lambda p: -p.score)
+    out = [None] * len(labels)
+    if not labels or not cars:
+        return out
+    overlap = iou_2d(np.array([gt.bbox for gt in labels]), np.array([p.bbox for p in cars]))
+    for j, box in enumerate(cars):
+        free = [i for i in range(len(labels)) if out[i] is None and overlap[i, j] >= MIN_OVERLAP]
+        if free:
+            out[max(free, key=lambda i: overlap[i, j])] = box
+    return out
+
+
+def car_ious(data: Path, pred: Path, ids: list[str], cars: str, oracle: bool
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(frame index, ground distance, 3D IoU) of every selected Car label, in label order,
-    against the lifted box with its 2D box."""
+    against its lifted box (0 where none matches)."""
     ds = KittiDataset(data)
     frame, dist, iou = [], [], []
     for k, fid in enumerate(ids):
-        preds = read_label(pred / f"{fid}.txt")
-        for gt in ds.labels(fid):
-            if gt.type != "Car" or (cars == "moderate" and outside_difficulty(
-                    gt.height_px, gt.occluded, gt.truncated, 1)):
+        labels = [gt for gt in ds.labels(fid) if gt.type == "Car"]
+        for gt, box in zip(labels, matches(labels, read_label(pred / f"{fid}.txt"), oracle)):
+            if cars == "moderate" and outside_difficulty(gt.height_px, gt.occluded, gt.truncated, 1):
                 continue
-            match = [p for p in preds if np.allclose(p.bbox, gt.bbox, atol=1e-3)]
             frame.append(k)
             dist.append(float(np.hypot(gt.location[0], gt.location[2])))
-            iou.append(float(iou_3d(gt.box7, match[0].box7)[0, 0]) if match else 0.0)
+            iou.append(float(iou_3d(gt.box7, box.box7)[0, 0]) if box is not None else 0.0)
     return np.array(frame, int), np.array(dist), np.array(iou)
 
 
@@ -84,6 +105,7 @@ def main() -> None:
     ap.add_argument("--beams", default="32,16", help="beam counts to drop the rings to")
     ap.add_argument("--method", default="fit")
     ap.add_argument("--priors", default="net")
+    ap.add_argument("--boxes", type=Path, help="2D detections to lift (default: the labels' boxes)")
     ap.add_argument("--cars", choices=("moderate", "all"), default="moderate")
     ap.add_argument("--bins", default="0,20,45,80", help="ground distance bin edges (m)")
     ap.add_argument("--draws", type=int, default=1000)
@@ -97,14 +119,16 @@ def main() -> None:
         reduce_beams(args.data, roots[b], b, sensor_beams=sensor_beams(args.data))
     ious = {}
     for b, root in roots.items():
-        pred = args.out / f"{args.method}_{args.priors}_{b}"
+        boxes = "labels" if args.boxes is None else args.boxes.name
+        pred = args.out / f"{args.method}_{args.priors}_{boxes}_{b}"
         if not args.reuse:
-            lift_dataset(root, None, args.method, pred, args.split, priors=args.priors)
-        frame, dist, ious[b] = car_ious(args.data, pred, ids, args.cars)
+            lift_dataset(root, args.boxes, args.method, pred, args.split, priors=args.priors)
+        frame, dist, ious[b] = car_ious(args.data, pred, ids, args.cars, args.boxes is None)
     counts = frame_draws(frame, len(ids), args.draws)
     base = ious[native]
+    source = "oracle 2D boxes" if args.boxes is None else f"the 2D boxes of {args.boxes}"
     print(f"{args.data}: {len(ids)} frames, {len(base)} {args.cars} Cars, `{args.method}` with "
-          f"{args.priors} priors and oracle 2D boxes; 95 % intervals over {args.draws} draws of the frames")
+          f"{args.priors} priors and {source}; 95 % intervals over {args.draws} draws of the frames")
     print("\n| beams | mean 3D IoU | Cars within 0.7 / 0.5 | change of mean IoU against "
           f"{native} | change of the share within 0.7 | within 0.5 |\n|---|---:|---:|---:|---:|---:|")
     for b, iou in ious.items():
