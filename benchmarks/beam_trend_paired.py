@@ -59,24 +59,21 @@ def matches(labels: list, preds: list, oracle: bool) -> list:
     return out
 
 
-def car_ious(data: Path, pred: Path, ids: list[str], cars: str, oracle: bool
-             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(frame index, ground distance, 3D IoU) of every selected Car label, in label order,
-    against its lifted box (0 where none matches)."""
+def car_labels(data: Path, ids: list[str]) -> list[list]:
+    """Each frame's Car labels."""
     ds = KittiDataset(data)
-    frame, dist, iou = [], [], []
-    for k, fid in enumerate(ids):
-        labels = [gt for gt in ds.labels(fid) if gt.type == "Car"]
-        for gt, box in zip(labels, matches(labels, read_label(pred / f"{fid}.txt"), oracle)):
-            if cars == "moderate" and outside_difficulty(gt.height_px, gt.occluded, gt.truncated, 1):
-                continue
-            frame.append(k)
-            dist.append(float(np.hypot(gt.location[0], gt.location[2])))
-            iou.append(float(iou_3d(gt.box7, box.box7)[0, 0]) if box is not None else 0.0)
-    return np.array(frame, int), np.array(dist), np.array(iou)
+    return [[gt for gt in ds.labels(fid) if gt.type == "Car"] for fid in ids]
 
 
-def frame_draws(frame: np.ndarray, n_frames: int, draws: int) -> np.ndarray:
+def car_ious(labels: list[list], pred: Path, ids: list[str], oracle: bool) -> np.ndarray:
+    """3D IoU of every Car label (frame by frame, in label order) against its lifted box, 0 where
+    none matches."""
+    return np.array([float(iou_3d(gt.box7, box.box7)[0, 0]) if box is not None else 0.0
+                     for fid, frame in zip(ids, labels)
+                     for gt, box in zip(frame, matches(frame, read_label(pred / f"{fid}.txt"), oracle))])
+
+
+def frame_draws(n_frames: int, draws: int) -> np.ndarray:
     """(draws, n_frames) counts: how often each frame is drawn in each bootstrap draw (seeded)."""
     rng = np.random.default_rng(0)
     return np.stack([np.bincount(rng.integers(n_frames, size=n_frames), minlength=n_frames)
@@ -117,14 +114,20 @@ def main() -> None:
     for b in (int(x) for x in args.beams.split(",")):
         roots[b] = args.out / f"beams{b}"
         reduce_beams(args.data, roots[b], b, sensor_beams=sensor_beams(args.data))
+    labels = car_labels(args.data, ids)
+    every = [gt for frame in labels for gt in frame]
+    keep = np.array([args.cars == "all" or not outside_difficulty(gt.height_px, gt.occluded, gt.truncated, 1)
+                     for gt in every], bool)
+    frame = np.repeat(np.arange(len(ids)), [len(f) for f in labels])[keep]
+    dist = np.array([np.hypot(gt.location[0], gt.location[2]) for gt in every])[keep]
     ious = {}
     for b, root in roots.items():
         boxes = "labels" if args.boxes is None else args.boxes.name
         pred = args.out / f"{args.method}_{args.priors}_{boxes}_{b}"
         if not args.reuse:
             lift_dataset(root, args.boxes, args.method, pred, args.split, priors=args.priors)
-        frame, dist, ious[b] = car_ious(args.data, pred, ids, args.cars, args.boxes is None)
-    counts = frame_draws(frame, len(ids), args.draws)
+        ious[b] = car_ious(labels, pred, ids, args.boxes is None)[keep]
+    counts = frame_draws(len(ids), args.draws)
     base = ious[native]
     source = "oracle 2D boxes" if args.boxes is None else f"the 2D boxes of {args.boxes}"
     print(f"{args.data}: {len(ids)} frames, {len(base)} {args.cars} Cars, `{args.method}` with "

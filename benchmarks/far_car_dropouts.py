@@ -4,9 +4,10 @@ the dev frames' 20, and of `benchmarks/far_car_points.py`'s per-bin gap).
 
     .venv/bin/python benchmarks/far_car_dropouts.py [--spec scenes/urban.yaml] [--frames 60] [--seed S]
 
-Each world of the spec (frames 0..N-1 of the seed, by default the spec's) is scanned twice with the spec's LiDAR and the
-frame's own LiDAR seed: as `testbed generate` scans it, and with `LidarSpec.detection` off (every
-hit within range kept: what the beams' geometry, glass and leaves allow). Per distance bin, the
+Each world of the spec (frames 0..N-1 of the seed, by default the spec's) is scanned twice with
+the spec's LiDAR and the frame's own LiDAR seed: as `testbed generate` scans it, and with
+`LidarSpec.detection` off (every hit within range kept: what the beams' geometry, glass and leaves
+allow). Per distance bin, the
 labelled fully visible Cars (occlusion 0, the generator's own labels): their median returns both
 ways and the share of the geometric returns the threshold keeps; at 40-80 m the same per band of
 the body paint's 905 nm reflectance (`simgen.materials.nir_reflectivity` of its colour).
