@@ -6,11 +6,12 @@ rings all kept and with rings dropped (every 2nd, every 4th: `kitti.reduce`, wha
 reduce-beams` writes), from the labels' 2D boxes (oracle boxes: each lifted box belongs to the
 label with the same 2D box), and its 3D IoU is compared with itself: the mean change of IoU and of
 the share of Cars within IoU 0.7 and 0.5, with the central 95 % over draws of the frames (a frame's
-Cars together). Run on a real root and on a generated one, the two trends can be set side by side.
+Cars together; with `--drives`, a drive's frames together). Run on a real root and on a generated
+one, the two trends can be set side by side.
 
     .venv/bin/python benchmarks/beam_trend_paired.py --data ROOT --out DIR [--split S]
         [--beams 32,16] [--method fit] [--priors net] [--boxes DETECTIONS] [--cars moderate|all]
-        [--bins 0,20,45,80] [--draws 1000] [--reuse]
+        [--bins 0,20,45,80] [--draws 1000] [--drives FILE] [--reuse]
 
 `--boxes`: a folder of 2D detections of ROOT (`testbed detect`) lifted instead of the labels'
 boxes, the whole chain: the lifted Car boxes, highest score first, each take the free Car label
@@ -31,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from kitti.dataset import KittiDataset
+from kitti.drives import draw_units, drawn, drive_units, read_drives
 from kitti.eval.protocol import outside_difficulty
 from kitti.iou import iou_2d, iou_3d
 from kitti.labels import read_label
@@ -73,11 +75,11 @@ def car_ious(labels: list[list], pred: Path, ids: list[str], oracle: bool) -> np
                      for gt, box in zip(frame, matches(frame, read_label(pred / f"{fid}.txt"), oracle))])
 
 
-def frame_draws(n_frames: int, draws: int) -> np.ndarray:
-    """(draws, n_frames) counts: how often each frame is drawn in each bootstrap draw (seeded)."""
-    rng = np.random.default_rng(0)
-    return np.stack([np.bincount(rng.integers(n_frames, size=n_frames), minlength=n_frames)
-                     for _ in range(draws)])
+def frame_draws(ids: list[str], draws: int, drives: dict[str, str] | None = None) -> np.ndarray:
+    """(draws, frames) counts: how often each frame is drawn in each bootstrap draw (seeded), a
+    drive's frames together where `drives` says which share one (`kitti.drives`)."""
+    rng, units = np.random.default_rng(0), drive_units(ids, drives)
+    return np.stack([np.bincount(draw_units(rng, units), minlength=len(ids)) for _ in range(draws)])
 
 
 def drawn_mean(values: np.ndarray, frame: np.ndarray, counts: np.ndarray) -> np.ndarray:
@@ -106,9 +108,12 @@ def main() -> None:
     ap.add_argument("--cars", choices=("moderate", "all"), default="moderate")
     ap.add_argument("--bins", default="0,20,45,80", help="ground distance bin edges (m)")
     ap.add_argument("--draws", type=int, default=1000)
+    ap.add_argument("--drives", type=Path, help="which frames share a drive (`kitti.read_drives`): "
+                                                "the draws take whole drives")
     ap.add_argument("--reuse", action="store_true", help="the lifted boxes already in OUT")
     args = ap.parse_args()
     ids = KittiDataset(args.data).ids(args.split)
+    drives = None if args.drives is None else read_drives(args.drives)
     native = source_beams_of(args.data, sensor_beams(args.data))
     roots = {native: args.data}
     for b in (int(x) for x in args.beams.split(",")):
@@ -127,11 +132,12 @@ def main() -> None:
         if not args.reuse:
             lift_dataset(root, args.boxes, args.method, pred, args.split, priors=args.priors)
         ious[b] = car_ious(labels, pred, ids, args.boxes is None)[keep]
-    counts = frame_draws(len(ids), args.draws)
+    counts = frame_draws(ids, args.draws, drives)
     base = ious[native]
     source = "oracle 2D boxes" if args.boxes is None else f"the 2D boxes of {args.boxes}"
     print(f"{args.data}: {len(ids)} frames, {len(base)} {args.cars} Cars, `{args.method}` with "
-          f"{args.priors} priors and {source}; 95 % intervals over {args.draws} draws of the frames")
+          f"{args.priors} priors and {source}; 95 % intervals over {args.draws} draws of "
+          f"{drawn(ids, drives)}")
     print("\n| beams | mean 3D IoU | Cars within 0.7 / 0.5 | change of mean IoU against "
           f"{native} | change of the share within 0.7 | within 0.5 |\n|---|---:|---:|---:|---:|---:|")
     for b, iou in ious.items():

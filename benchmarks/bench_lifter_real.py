@@ -3,7 +3,8 @@ Car AP|R40 (3D @0.7 and @0.5, moderate) and, per labelled Car/Van, the errors of
 (oracle 2D boxes, so each lifted box belongs to the label with the same 2D box).
 
     .venv/bin/python benchmarks/bench_lifter_real.py --data ../shared/kitti_real_dev \
-        --out runs/lifter/real [--methods fit,mono,frustum] [--priors net,truth] [--objects]
+        --out runs/lifter/real [--methods fit,mono,frustum] [--priors net,truth] [--objects] \
+        [--drives results/fidelity/kitti_real_dev_drives.txt]
 
 Per object: depth, truncation/occlusion, the centre error (along the camera ray, across it, and
 in height), the yaw error, the size error (h, w, l), the 3D IoU, and how high the label's bottom
@@ -28,6 +29,7 @@ import numpy as np
 
 from kitti.boxes import wrap_angle
 from kitti.dataset import KittiDataset
+from kitti.drives import drawn, read_drives
 from kitti.eval import evaluate_folders, load_annotations
 from kitti.eval.ap import devkit_cap
 from kitti.eval.bootstrap import DRAWS, bootstrap_ap
@@ -110,6 +112,8 @@ def main() -> None:
     ap.add_argument("--out", required=True)
     ap.add_argument("--objects", action="store_true", help="print the per-object tables")
     ap.add_argument("--reuse", action="store_true", help="evaluate result folders already in OUT")
+    ap.add_argument("--drives", type=Path, help="which frames share a drive (`kitti.read_drives`): "
+                                                "the intervals' draws take whole drives")
     args = ap.parse_args()
     data, out = Path(args.data), Path(args.out)
     ids = KittiDataset(data).ids(args.split)
@@ -144,7 +148,8 @@ def main() -> None:
               f"| {m7:.1f} / {m5:.1f} "
               f"| {n7} / {n5} of {n} | {med['d_along']:.2f} / {med['d_across']:.2f} / {med['d_y']:.2f} "
               f"| {med['d_yaw_deg']:.1f} | {med['d_l']:.2f} |")
-    print("\n" + "\n".join(interval_rows(data, out, ids, [(m, p) for m, p, *_ in summary])))
+    drives = None if args.drives is None else read_drives(args.drives)
+    print("\n" + "\n".join(interval_rows(data, out, ids, [(m, p) for m, p, *_ in summary], drives)))
     if roads:
         print("\n" + "\n".join(bottom_rows(objects)))
     out.mkdir(parents=True, exist_ok=True)
@@ -169,14 +174,16 @@ def bottom_rows(objects: dict[str, list[dict]]) -> list[str]:
     return lines
 
 
-def interval_rows(data: Path, out: Path, ids: list[str], runs: list[tuple[str, str]]) -> list[str]:
+def interval_rows(data: Path, out: Path, ids: list[str], runs: list[tuple[str, str]],
+                  drives: dict[str, str] | None = None) -> list[str]:
     """Each run's moderate Car 3D AP with its 95 % interval over draws of the frames (a frame's
-    labels and lifted boxes together; kitti.eval.bootstrap), the same draws for every run."""
+    labels and lifted boxes together, a drive's frames together given `drives`;
+    kitti.eval.bootstrap), the same draws for every run."""
     gt = load_annotations(data / "training" / "label_2", ids, progress=False)
     results = {f"{m}/{p}": load_annotations(out / f"{m}_{p}", list(gt), missing_ok=True, progress=False)
                for m, p in runs}
-    boot = bootstrap_ap(gt, results, metrics=("3d",))
-    rows = [f"Car 3D AP|R40 moderate over {DRAWS} bootstrap draws of the {len(ids)} frames: 95 % "
+    boot = bootstrap_ap(gt, results, metrics=("3d",), drives=drives)
+    rows = [f"Car 3D AP|R40 moderate over {DRAWS} bootstrap draws of {drawn(sorted(gt), drives)}: 95 % "
             "intervals (the devkit's; on the measured recall)", "",
             "| method | priors | @0.7 | @0.5 | measured recall @0.7 | @0.5 |", "|---|---|---|---|---|---|"]
     for name in results:

@@ -32,6 +32,7 @@ import numpy as np
 from detector.augment import pairwise_iou
 from detector.infer import default_scales, detect_dataset, parse_scales
 from kitti.dataset import KittiDataset
+from kitti.drives import drawn, read_drives
 from kitti.eval import ap_2d, evaluate
 from kitti.eval.bootstrap import DRAWS, bootstrap_ap
 from kitti.eval.folders import load_folders
@@ -134,13 +135,15 @@ def _blur_images(sigma: float) -> None:
     KittiDataset.image = lambda self, fid: cv2.GaussianBlur(read(self, fid), (0, 0), sigma)
 
 
-def interval_rows(ds: KittiDataset, ids: list[str], preds: dict[str, dict]) -> list[str]:
-    """Each run's moderate Car AP with its 95 % interval over draws of the frames, and the paired
-    interval of its difference to the first run (kitti.eval.bootstrap)."""
+def interval_rows(ds: KittiDataset, ids: list[str], preds: dict[str, dict],
+                  drives: dict[str, str] | None = None) -> list[str]:
+    """Each run's moderate Car AP with its 95 % interval over draws of the frames (a drive's frames
+    together given `drives`), and the paired interval of its difference to the first run
+    (kitti.eval.bootstrap)."""
     gt = {fid: ds.labels(fid) for fid in ids}
-    boot = bootstrap_ap(gt, preds)["Car", "2d", False]
+    boot = bootstrap_ap(gt, preds, drives=drives)["Car", "2d", False]
     first = boot.names[0]
-    rows = [f"Car 2D AP|R40 moderate over {DRAWS} bootstrap draws of the {len(ids)} frames (a frame's "
+    rows = [f"Car 2D AP|R40 moderate over {DRAWS} bootstrap draws of {drawn(sorted(gt), drives)} (a frame's "
             f"labels and detections together): its 95 % interval, and the paired 95 % interval of "
             f"its difference to {first}, by the devkit and on the measured recall:", "",
             "| weights | 95 % interval | minus the first run | on the measured recall | minus the first run |",
@@ -171,6 +174,8 @@ def main() -> None:
                          "default read, `detector.infer.default_scales`)")
     ap.add_argument("--objects", action="store_true",
                     help="also list every labelled Car and Van with the detection that overlaps it most")
+    ap.add_argument("--drives", type=Path, help="which frames share a drive (`kitti.read_drives`): "
+                                                "the intervals' draws take whole drives")
     args = ap.parse_args()
     if args.blur_sigma > 0:
         _blur_images(args.blur_sigma)
@@ -205,7 +210,8 @@ def main() -> None:
         preds[w] = pred
         if args.objects:
             objects.append((w, scored))
-    print("\n" + "\n".join(interval_rows(ds, ids, preds)))
+    drives = None if args.drives is None else read_drives(args.drives)
+    print("\n" + "\n".join(interval_rows(ds, ids, preds, drives)))
     print(f"\nNear Cars and Vans (2D box >= {NEAR_PX} px, untruncated, occlusion <= 1), the best-"
           "overlapping Car detection (score >= 0.1):\n")
     print("| weights | labels | median IoU | IoU >= 0.7 | top edge, median (x height) | bottom edge |")

@@ -9,6 +9,7 @@ from .boxes import (alpha_from_rotation_y, box_corners, lidar_upright_corners, p
                     project_boxes, rotation_y_from_alpha)
 from .calib import Calibration, read_calib, write_calib
 from .dataset import KittiDataset
+from .drives import read_drives
 from .errors import KittiFormatError
 from .iou import iou_2d, iou_3d, iou_bev
 from .labels import Object3D, boxes7, read_label, write_label
@@ -19,7 +20,7 @@ from .velodyne import read_velodyne, write_velodyne
 __all__ = [
     "Calibration", "KittiDataset", "KittiFormatError", "Object3D", "alpha_from_rotation_y",
     "box_corners", "boxes7", "iou_2d", "iou_3d", "iou_bev", "lidar_upright_corners",
-    "points_in_boxes", "project_boxes", "read_calib", "read_label", "read_plane", "read_split",
-    "read_velodyne", "rotation_y_from_alpha", "write_calib", "write_label", "write_plane",
+    "points_in_boxes", "project_boxes", "read_calib", "read_drives", "read_label", "read_plane",
+    "read_split", "read_velodyne", "rotation_y_from_alpha", "write_calib", "write_label", "write_plane",
     "write_split", "write_velodyne",
 ]

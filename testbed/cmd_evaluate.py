@@ -40,12 +40,17 @@ def _floats(ctx, param, value: str | None) -> list[float] | None:
 @click.option("--bootstrap", "draws", default=0, show_default=True, type=click.IntRange(min=0),
               help="Also give each AP|R40 its 95 % interval over this many draws of the frames "
                    "(with replacement; for small sets such as a few real frames).")
+@click.option("--drives", "drives_path", type=click.Path(exists=True, path_type=Path),
+              help="Which frames share a drive, for --bootstrap to draw whole drives: lines "
+                   "'FRAME_ID DRIVE', or the KITTI devkit's mapping/ folder [default: every frame "
+                   "its own].")
 def evaluate(gt_dir: Path, pred_dir: Path, split: Path | None, json_out: Path | None,
              range_bins: list[float] | None, classes: str, match_iou: float, min_score: float | None,
-             max_distance: float, draws: int) -> None:
+             max_distance: float, draws: int, drives_path: Path | None) -> None:
     """Evaluate detections in PRED against truth in GT: 2D, bird's-eye, 3D and AOS, AP|R11 and
     AP|R40, easy/moderate/hard, exactly as the KITTI devkit; plus AP per distance bin,
     matched-pair errors and the volumetric metrics."""
+    from kitti.drives import read_drives
     from kitti.eval import evaluate
     from kitti.eval.bootstrap import interval_table
     from kitti.eval.folders import load_folders
@@ -53,12 +58,13 @@ def evaluate(gt_dir: Path, pred_dir: Path, split: Path | None, json_out: Path | 
 
     names = [c.strip() for c in classes.split(",") if c.strip()]
     try:
+        drives = None if drives_path is None else read_drives(drives_path)
         gt, dt = load_folders(gt_dir, pred_dir, split)
         res = evaluate(gt, dt, classes=names, range_bins=range_bins, progress=True,
                        match_iou=match_iou, min_score=min_score, max_distance=max_distance)
         doc = res.to_json()
         if draws:
-            text, doc["bootstrap"] = interval_table(gt, dt, res, draws)
+            text, doc["bootstrap"] = interval_table(gt, dt, res, draws, drives)
     except ValueError as e:
         raise click.ClickException(str(e)) from None
     click.echo(res.table(), nl=False)

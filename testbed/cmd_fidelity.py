@@ -23,10 +23,18 @@ _DATASET = click.Path(exists=True, file_okay=False, path_type=Path)
               show_default=True, help="Worker processes (1: in this process).")
 @click.option("--draws", type=click.IntRange(min=0), default=1000, show_default=True,
               help="Bootstrap draws of both sides' frames behind each verdict's 95 % interval (0: none).")
+@click.option("--sim-drives", "sim_drives", type=click.Path(exists=True, path_type=Path),
+              help="Which of SIM's frames share a drive, for the bootstrap to draw drives: lines "
+                   "'FRAME_ID DRIVE', or the KITTI devkit's mapping/ folder; frames not named are a "
+                   "drive each [default: every frame its own].")
+@click.option("--real-drives", "real_drives", type=click.Path(exists=True, path_type=Path),
+              help="The same for REAL.")
 def fidelity(sim: Path, real: Path, out: Path, split: str | None, frames: int | None,
-             tolerances: Path | None, workers: int, draws: int) -> None:
+             tolerances: Path | None, workers: int, draws: int, sim_drives: Path | None,
+             real_drives: Path | None) -> None:
     """Compare the LiDAR scans, images and labels of SIM with those of REAL: medians per
     statistic, relative differences with pass/fail verdicts, and overlaid histograms."""
+    from kitti.drives import read_drives
     from kitti.errors import KittiFormatError
 
     from .backends import LocalBackend
@@ -34,10 +42,11 @@ def fidelity(sim: Path, real: Path, out: Path, split: str | None, frames: int | 
 
     try:
         tol = load_tolerances(tolerances)
+        drives = [None if p is None else read_drives(p) for p in (sim_drives, real_drives)]
         with LocalBackend(workers) as backend:
             sim_stats = compute_stats(sim, split, frames, backend)
             real_stats = compute_stats(real, split, frames, backend)
-        comparison = compare(sim_stats, real_stats, tol, draws)
+        comparison = compare(sim_stats, real_stats, tol, draws, *drives)
         write_report(comparison, out)
     except (KittiFormatError, ValueError) as e:
         raise click.ClickException(str(e)) from None

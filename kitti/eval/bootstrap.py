@@ -15,6 +15,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from ..drives import draw_units, drawn, drive_units
 from ..labels import Object3D
 from .evaluate import METRICS, _progress, check_request, class_ap, overlaps_needed
 from .frames import pack
@@ -62,9 +63,16 @@ class APDraws:
         return central_interval(v[:, i, difficulty] - v[:, j, difficulty])
 
 
-def draw_frames(ids: Sequence[str], draws: int = DRAWS, seed: int = SEED) -> np.ndarray:
-    """(draws, len(ids)) indices into `ids`, drawn with replacement."""
-    return np.random.default_rng(seed).integers(len(ids), size=(draws, len(ids)))
+def draw_frames(ids: Sequence[str], draws: int = DRAWS, seed: int = SEED,
+                drives: Mapping[str, str] | None = None) -> np.ndarray | list[np.ndarray]:
+    """(draws, len(ids)) indices into `ids`, drawn with replacement; where `drives` ({frame id:
+    drive}, `kitti.read_drives`) puts frames on one drive, a list of draws that each take whole
+    drives (`kitti.drives.draw_units`: frames seconds apart show the same cars)."""
+    rng = np.random.default_rng(seed)
+    units = drive_units(ids, drives)
+    if len(units) == len(ids):
+        return rng.integers(len(ids), size=(draws, len(ids)))
+    return [draw_units(rng, units) for _ in range(draws)]
 
 
 def resampled(objects: Mapping[str, Sequence[Object3D]], ids: Sequence[str],
@@ -77,12 +85,13 @@ def resampled(objects: Mapping[str, Sequence[Object3D]], ids: Sequence[str],
 def bootstrap_ap(gt: Mapping[str, Sequence[Object3D]],
                  results: Mapping[str, Mapping[str, Sequence[Object3D]]],
                  classes: Sequence[str] = ("Car",), metrics: Sequence[str] = ("2d",),
-                 draws: int = DRAWS, seed: int = SEED,
-                 progress: bool = False) -> dict[tuple[str, str, bool], APDraws]:
+                 draws: int = DRAWS, seed: int = SEED, progress: bool = False,
+                 drives: Mapping[str, str] | None = None) -> dict[tuple[str, str, bool], APDraws]:
     """AP|R40 (easy, moderate, hard) of each of `results` ({name: {frame id: detections}}) against
-    `gt` over `draws` draws of gt's frames, the same draws for every result set; keyed by (class,
-    metric, loose): strict IoU, and for bird's-eye and 3D also the loose one (0.5 for Car). A
-    metric the results cannot be scored on (3D without 3D boxes) is left out.
+    `gt` over `draws` draws of gt's frames (whole drives where `drives` says which frames share
+    one), the same draws for every result set; keyed by (class, metric, loose): strict IoU, and
+    for bird's-eye and 3D also the loose one (0.5 for Car). A metric the results cannot be scored
+    on (3D without 3D boxes) is left out.
 
     Each draw is scored exactly as `evaluate` scores the drawn frames (`resampled`): each result
     set is packed and its overlaps computed once, and a draw takes its frames' rows and overlaps
@@ -101,7 +110,7 @@ def bootstrap_ap(gt: Mapping[str, Sequence[Object3D]],
         p = pack(gt, results[name])
         packed.append((p, {m: pair_overlaps(p, m) for m in overlaps_needed(metrics)},
                        dontcare_overlap(p.dt, p.dc)))
-    for d, picks in enumerate(_progress(draw_frames(ids, draws, seed), progress, "bootstrap")):
+    for d, picks in enumerate(_progress(draw_frames(ids, draws, seed, drives), progress, "bootstrap")):
         for j, (p, ovs, dc_ov) in enumerate(packed):
             q, slots, rows = p.take(picks)
             q_ovs, q_dc = {m: v[slots] for m, v in ovs.items()}, dc_ov[rows]
@@ -116,17 +125,19 @@ def bootstrap_ap(gt: Mapping[str, Sequence[Object3D]],
 
 
 def interval_table(gt: Mapping[str, Sequence[Object3D]], dt: Mapping[str, Sequence[Object3D]],
-                   res: EvalResult, draws: int = DRAWS) -> tuple[str, dict]:
+                   res: EvalResult, draws: int = DRAWS,
+                   drives: Mapping[str, str] | None = None) -> tuple[str, dict]:
     """`testbed evaluate --bootstrap`: every AP|R40 of `res` (the evaluation of `dt` against
-    `gt`, strict IoU) with its 95 % interval over draws of the frames, as a printout and JSON; for
-    a class with fewer than 41 truth boxes in a difficulty (`EvalResult.capped`), the AP|R40 on
-    the measured recall too, over the same draws."""
+    `gt`, strict IoU) with its 95 % interval over draws of the frames (of whole drives, given
+    `drives`), as a printout and JSON; for a class with fewer than 41 truth boxes in a difficulty
+    (`EvalResult.capped`), the AP|R40 on the measured recall too, over the same draws."""
     metrics = sorted({m for c in res.classes for m in res.ap[c]}, key=list(METRICS).index)
     head = "class       metric  easy                   moderate               hard"
-    lines = [f"AP|R40 with its {LEVEL:.0%} interval over {draws} bootstrap draws of the {len(gt)} "
-             "frames (a frame's labels and detections together):", "", head]
-    out: dict = {"draws": draws, "level": LEVEL, "seed": SEED}
-    boot = bootstrap_ap(gt, {"pred": dt}, res.classes, metrics, draws=draws, progress=True)
+    ids = sorted(gt)
+    lines = [f"AP|R40 with its {LEVEL:.0%} interval over {draws} bootstrap draws of {drawn(ids, drives)} "
+             "(a frame's labels and detections together):", "", head]
+    out: dict = {"draws": draws, "level": LEVEL, "seed": SEED, "units": len(drive_units(ids, drives))}
+    boot = bootstrap_ap(gt, {"pred": dt}, res.classes, metrics, draws=draws, progress=True, drives=drives)
     few = [c for c in res.classes if res.capped(c)]
     for key, classes, measured in (("R40", res.classes, False), ("R40_measured_recall", few, True)):
         if not classes:

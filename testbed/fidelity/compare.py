@@ -5,11 +5,14 @@ at hand decide that verdict (bootstrap.py)."""
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+
+from kitti.drives import drive_units
 
 from .bootstrap import DRAWS, Interval, intervals, relative_difference
 from .catalog import STAT_KEYS, STATS
@@ -70,7 +73,7 @@ class Row:
     rel_diff: float | None  # None: real is 0 and sim is not
     tolerance: float
     verdict: str            # pass, fail, or n/a (a group absent or no data)
-    interval: Interval | None = None  # 95 % bootstrap interval of rel_diff (frames resampled)
+    interval: Interval | None = None  # 95 % bootstrap interval of rel_diff (frames or drives resampled)
 
     @property
     def decided(self) -> bool | None:
@@ -86,7 +89,8 @@ class Comparison:
     real: DatasetStats
     tolerances: Tolerances
     rows: list[Row]
-    draws: int = 0  # bootstrap draws behind the rows' intervals
+    draws: int  # bootstrap draws behind the rows' intervals
+    units: tuple[int, int]  # what the draws resample, sim and real: drives (or frames)
 
 
 def verdict(sim: float, real: float, tol: float) -> tuple[float | None, str]:
@@ -101,13 +105,16 @@ def verdict(sim: float, real: float, tol: float) -> tuple[float | None, str]:
 
 
 def compare(sim: DatasetStats, real: DatasetStats, tolerances: Tolerances | None = None,
-            draws: int = DRAWS) -> Comparison:
-    """Every statistic's row; `draws` bootstrap draws give each its interval (0: none)."""
+            draws: int = DRAWS, sim_drives: Mapping[str, str] | None = None,
+            real_drives: Mapping[str, str] | None = None) -> Comparison:
+    """Every statistic's row; `draws` bootstrap draws give each its interval (0: none), resampling
+    drives where `*_drives` ({frame id: drive}, `kitti.read_drives`) say which frames share one."""
     tolerances = tolerances or load_tolerances()
-    bounds = intervals(sim, real, draws)
+    bounds = intervals(sim, real, draws, sim_drives=sim_drives, real_drives=real_drives)
     rows = []
     for s in STATS:
         a, b = s.value(sim), s.value(real)
         rel, v = verdict(a, b, tolerances.of(s.key))
         rows.append(Row(s.key, s.label, s.unit, a, b, rel, tolerances.of(s.key), v, bounds[s.key]))
-    return Comparison(sim, real, tolerances, rows, draws)
+    return Comparison(sim, real, tolerances, rows, draws,
+                      (len(drive_units(sim.frames, sim_drives)), len(drive_units(real.frames, real_drives))))

@@ -56,10 +56,12 @@ NOTES = f"""\
 - Relative difference = (sim - real) / |real|; a statistic passes when its magnitude is at most the
   tolerance.
 - 95 % interval: both datasets' frames resampled with replacement (a frame's objects travel with
-  it), every statistic recomputed, the draws above with a fixed seed; the central 95 % of the
-  relative differences (`testbed.fidelity.bootstrap`). A verdict is decided when the whole
-  interval lies on its side of the tolerance, undecided when more frames like these could turn
-  it; n/a where the statistic has no value in more than 5 % of the draws (too few objects).
+  it), by drive where `--sim-drives` / `--real-drives` say which frames share one (a draw takes
+  all of a drive's frames: frames seconds apart show the same street), every statistic
+  recomputed, the draws above with a fixed seed; the central 95 % of the relative differences
+  (`testbed.fidelity.bootstrap`). A verdict is decided when the whole interval lies on its side
+  of the tolerance, undecided when more frames like these could turn it; n/a where the statistic
+  has no value in more than 5 % of the draws (too few objects).
 """
 
 
@@ -117,7 +119,8 @@ def to_json(comp: Comparison) -> dict:
                                else [_num(r.interval.lo), _num(r.interval.hi)],
                                "tolerance": r.tolerance, "verdict": r.verdict, "decided": r.decided}
                        for r in comp.rows},
-        "bootstrap": {"draws": comp.draws, "level": LEVEL, "seed": SEED},
+        "bootstrap": {"draws": comp.draws, "level": LEVEL, "seed": SEED,
+                      "units": dict(zip(sides, comp.units))},
         "histograms": {key: {"edges": [_num(e) for e in comp.sim.hists[key].edges],
                              **{n: [_num(c) for c in d.hists[key].normalised()]
                                 for n, d in sides.items()}} for key in comp.sim.hists},
@@ -143,6 +146,11 @@ def _decided_fails(comp: Comparison) -> str:
     return ", ".join(f"`{r.key}` ({_rel(r.rel_diff)})" for r in rows)
 
 
+def _units(frames: int, units: int) -> str:
+    """What one side's bootstrap draws resample."""
+    return "frames" if units == frames else f"{units} drives"
+
+
 def _header(comp: Comparison) -> list[str]:
     sim, real = comp.sim, comp.real
     counts = {v: sum(r.verdict == v for r in comp.rows) for v in ("pass", "fail", "n/a")}
@@ -156,7 +164,9 @@ def _header(comp: Comparison) -> list[str]:
         f"| root | `{sim.root}` | `{real.root}` |",
         f"| split | {sim.split or 'every frame with an image'} | "
         f"{real.split or 'every frame with an image'} |",
-        f"| frames read | {len(sim.frames)} | {len(real.frames)} |", "",
+        f"| frames read | {len(sim.frames)} | {len(real.frames)} |",
+        *([f"| drawn as | {_units(len(sim.frames), comp.units[0])} | "
+           f"{_units(len(real.frames), comp.units[1])} |"] if comp.draws else []), "",
         f"Verdicts: {counts['pass']} pass, {counts['fail']} fail, {counts['n/a']} n/a "
         f"(relative tolerance, default ±{comp.tolerances.default:.0%}).", "",
         *([f"Decided by these frames (the whole {LEVEL:.0%} bootstrap interval, {comp.draws} draws, on "

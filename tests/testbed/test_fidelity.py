@@ -255,6 +255,22 @@ def test_the_command_writes_the_report_and_turns_a_bad_tolerance_file_into_a_mes
     assert res.exit_code == 1 and "'nope'" in res.output and str(bad) in res.output
 
 
+def test_the_command_draws_the_real_frames_by_drive(real_root, tmp_path):
+    """The committed drives file puts four of the eleven dev frames (one traffic jam) on one
+    drive: the real side is drawn as eight drives; a file with a bad line is named, line and all."""
+    args = ["--sim", str(real_root), "--real", str(real_root), "--workers", "1", "--draws", "20"]
+    drives = str(ROOT / "results/fidelity/kitti_real_dev_drives.txt")
+    res = CliRunner().invoke(fidelity, [*args, "--out", str(tmp_path / "out"), "--real-drives", drives])
+    assert res.exit_code == 0, res.output
+    doc = json.loads((tmp_path / "out/fidelity.json").read_text())
+    assert doc["bootstrap"]["units"] == {"sim": 11, "real": 8}
+    assert "| drawn as | frames | 8 drives |" in (tmp_path / "out/report.md").read_text()
+    bad = tmp_path / "drives.txt"
+    bad.write_text("001206 jam\n001497\n")
+    res = CliRunner().invoke(fidelity, [*args, "--out", str(tmp_path / "o2"), "--real-drives", str(bad)])
+    assert res.exit_code == 1 and f"{bad}, line 2" in res.output and not (tmp_path / "o2").exists()
+
+
 def test_points_on_cars_by_distance_and_on_the_fully_visible_ones():
     """Medians by hand: the visible statistic keeps the occlusion-0 Cars of its distance bin."""
     from testbed.fidelity.catalog import car_points

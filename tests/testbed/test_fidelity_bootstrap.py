@@ -1,5 +1,6 @@
 """The bootstrap behind each fidelity verdict: frames keep their values through chunks and
-resampling, an interval computed by hand, and the real dev frames against themselves."""
+resampling, intervals computed by hand (frames drawn one by one or a drive at a time), and the real
+dev frames against themselves."""
 
 from __future__ import annotations
 
@@ -84,6 +85,26 @@ def test_an_interval_by_hand():
     assert far == Interval(pytest.approx(0.9 / 1.1), 1.0) and far.decides("fail", 0.15)
     assert not far.decides("fail", 0.9) and not far.decides("pass", 0.15)
     assert intervals(_one([2.0]), _one([1.0]), draws=0, stats=stat) == {"images.grey_mean": None}
+
+
+def test_a_drive_is_drawn_whole():
+    """Real: nine frames of one drive at 1.0 and two lone frames at 3.0, against a sim frame at 2.0.
+    Drawn as eleven frames, a draw's median is 3.0 only when six or more of its eleven are lone
+    frames (binomial, p = 2/11: 0.7 % of the draws), so the central 95 % is +100 % alone: a decided
+    fail. Drawn as three drives, a draw without the long one (8/27 of the draws) is all 3.0, -33 %:
+    the interval is [-33 %, +100 %], undecided. With every frame a drive of its own the draws are
+    the frames' own, number for number."""
+    stat = (Stat("images.grey_mean", "grey", "", med("images.grey_mean")),)
+    sim, real = _one([2.0]), _one([1.0] * 9 + [3.0] * 2)
+    (frames,) = intervals(sim, real, stats=stat).values()
+    assert frames == Interval(1.0, 1.0) and frames.decides("fail", 0.15)
+    long_drive = {str(i): "long" for i in range(9)}
+    (whole,) = intervals(sim, real, stats=stat, real_drives=long_drive).values()
+    assert whole == Interval(pytest.approx(-1 / 3), 1.0) and not whole.decides("fail", 0.15)
+    alone = {str(i): f"drive {i}" for i in range(11)}
+    assert intervals(sim, real, stats=stat, real_drives=alone) == {"images.grey_mean": frames}
+    assert compare(sim, real, real_drives=long_drive).units == (1, 3)
+    assert compare(sim, real).units == (1, 11)
 
 
 def test_the_real_dev_frames_against_themselves(real_root):

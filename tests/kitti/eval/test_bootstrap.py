@@ -29,6 +29,17 @@ def test_a_draw_keeps_each_frame_whole_and_counts_repeats():
     assert picks.shape == (5, 3) and np.array_equal(picks, draw_frames(ids, draws=5, seed=1))
 
 
+def test_frames_of_one_drive_are_drawn_together():
+    """Frames a and b on one drive, c alone: a draw takes two units, so it holds 2, 3 or 4 frames,
+    a and b always equally often; every frame on a drive of its own draws exactly as no drives."""
+    ids = ["a", "b", "c"]
+    draws = draw_frames(ids, draws=200, seed=1, drives={"a": "x", "b": "x"})
+    assert {len(p) for p in draws} == {2, 3, 4}
+    assert all(np.count_nonzero(p == 0) == np.count_nonzero(p == 1) for p in draws)
+    alone = draw_frames(ids, draws=5, seed=1, drives={"a": "x", "b": "y", "c": "z"})
+    assert np.array_equal(alone, draw_frames(ids, draws=5, seed=1))
+
+
 def test_intervals_by_hand_on_two_frames():
     """One car a frame; "half" finds frame A's only, "both" finds both. A draw holds AA, AB or BB
     (a quarter, a half, a quarter). The devkit's AP|R40 with two truth boxes both found at
@@ -62,6 +73,15 @@ def test_evaluate_prints_and_writes_the_intervals(tmp_path):
     assert "Car         2d       0.00 [ 0.00,  2.50]  0.00 [ 0.00,  2.50]" in res.output
     doc = json.loads(out.read_text())["bootstrap"]
     assert doc["draws"] == 200 and doc["R40"]["Car"]["2d"][1] == [0.0, 2.5]
+    # both frames on one drive: every draw holds both, one of two cars found: AP 0 in each
+    drives = tmp_path / "drives.txt"
+    drives.write_text("000000 d\n000001 d\n")
+    res = CliRunner().invoke(evaluate, ["--gt", str(gt), "--pred", str(pred), "--classes", "Car",
+                                        "--bootstrap", "50", "--drives", str(drives), "--json", str(out)])
+    assert res.exit_code == 0, res.output
+    assert "50 bootstrap draws of the 2 frames' 1 drive (" in res.output
+    doc = json.loads(out.read_text())["bootstrap"]
+    assert doc["units"] == 1 and doc["R40"]["Car"]["2d"][1] == [0.0, 0.0]
 
 
 def test_each_draw_scores_as_evaluate_scores_the_drawn_frames():
