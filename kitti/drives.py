@@ -67,7 +67,7 @@ def _from_devkit(folder: Path) -> dict[str, str]:
     for frame, entry in enumerate(entries):
         if not entry.isdigit() or not 1 <= int(entry) <= len(raw):
             raise KittiFormatError(f"'{entry}' is not a line of {DEVKIT_MAPPING} (1-{len(raw)})",
-                                   rand_path, 1, f"entry {frame + 1}")
+                                   rand_path, field=f"entry {frame + 1}")
         drives[f"{frame:06d}"] = raw[int(entry) - 1]
     return drives
 
