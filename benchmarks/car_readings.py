@@ -36,6 +36,7 @@ MIN_POINTS = 30
 COS_BINS = (0.0, 0.3, 0.5, 0.7, 0.85, 0.95, 1.0001)
 PERCENTILES = (10, 25, 50, 75, 90)
 FACES = ("side", "front or rear", "top")
+BOTTOM_M = 0.05  # a return this close to its box's bottom face is likely the road under the box
 MAP_CARS = 6
 
 
@@ -150,6 +151,13 @@ def main() -> None:
     for k, face in enumerate(FACES):
         cells = [_cell(c.refl[c.face == k]) for c in sides.values()]
         print(f"| {face} | {cells[0]} | {cells[1]} |")
+    print(f"\nReturns within {BOTTOM_M * 100:.0f} cm of their box's bottom face (road returns where a box "
+          "stands on the road), and the median Car's share read 0 without them:")
+    for name, c in sides.items():
+        low = [v[2][:, 2] < BOTTOM_M for v in c.views]
+        kept = [np.mean(v[3][~m] == 0) for v, m in zip(c.views, low) if (~m).any()]
+        print(f"- {name}: {np.mean(np.concatenate(low)):.3f} of the returns; {np.median(kept):.3f} "
+              f"(with them {np.median(c.per_car[:, 0]):.3f})")
     print("\nPer Car (10th / 25th / 50th / 75th / 90th percentile over the Cars):")
     print("| side | Cars | share read 0 | nonzero median |")
     print("|---|---|---|---|")
