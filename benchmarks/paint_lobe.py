@@ -68,13 +68,13 @@ def main() -> None:
     for k in ks:
         roots[k] = args.out / f"k{k:g}"
         rescan_with(args.src, roots[k], k)
-    labels = {s.key: s.label for s in STATS}
+    by_key = {s.key: s for s in STATS}
     stats = {k: compute_stats(root) for k, root in roots.items()}
     print("| statistic (fidelity report) | " + " | ".join(f"k = {k:g}" for k in ks) + " |")
     print("|---|" + "---:|" * len(ks))
     for key in ROWS:
-        stat = next(s for s in STATS if s.key == key)
-        print(f"| {labels[key]} | " + " | ".join(f"{stat.value(stats[k]):.4g}" for k in ks) + " |")
+        stat = by_key[key]
+        print(f"| {stat.label} | " + " | ".join(f"{stat.value(stats[k]):.4g}" for k in ks) + " |")
     here = Path(__file__).resolve().parent
     for k, root in roots.items():
         print(f"\n### k = {k:g}: beam trend, `fit`, oracle boxes\n")
