@@ -141,4 +141,3 @@ class EvalResult:
                 if m in blocks:
                     lines.append(f"{_LABEL[m]} AP:" + ", ".join(_fmt(v) for v in blocks[m]))
         return lines
-
