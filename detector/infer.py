@@ -2,6 +2,7 @@
 KITTI result files with the 3D fields as the format's placeholders."""
 from __future__ import annotations
 
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -21,8 +22,8 @@ DEFAULT_WEIGHTS = Path(__file__).resolve().parent / "weights" / "flexinet_small.
 # The shipped weights' read: the image at the network's input size and scaled by 1.25 and 0.83,
 # each as seen and mirrored (six views: 605 ms a frame against 156 on 2 threads). Chosen among
 # six sets on generated dev frames and judged on 1,000 fresh ones against the read at 1 alone: Car
-# 2D AP|R40 moderate +1.1 [+0.2, +1.8] (paired 95 %), Pedestrian +4.1 (results/detector.md, stop
-# 56). Other weights are read at 1 unless asked: what helps one network was measured for it alone.
+# 2D AP|R40 moderate +1.1 [+0.2, +1.8] (paired 95 %), Pedestrian +4.1 (results/detector.md). Other
+# weights are read at 1 unless asked: what helps one network was measured for it alone.
 DEFAULT_SCALES = (1.0, 1.25, 0.83)
 
 
@@ -82,6 +83,20 @@ def save_ensemble(path: Path, weights: list[Path]) -> None:
         torch.save({"members": members, "ensemble_of": [Path(w).name for w in weights]}, tmp)
 
 
+@contextmanager
+def aten_convolutions():
+    """Convolutions by ATen on MKL rather than oneDNN. oneDNN picks its algorithm by the thread
+    count (one and two threads give other bits) and its blocking by the CPU; MKL's COMPATIBLE
+    branch (pinned by kitti.cpu) gives the same bits on Intel and AMD and with 1 or 2 threads
+    (tests/test_same_bytes.py), at the same speed for this network."""
+    before = torch.backends.mkldnn.enabled
+    torch.backends.mkldnn.enabled = False
+    try:
+        yield
+    finally:
+        torch.backends.mkldnn.enabled = before
+
+
 @dataclass
 class Detector:
     """`mirror`: each image is also read mirrored (left-right), both reads' candidates go through
@@ -103,7 +118,7 @@ class Detector:
     its best view's alone; scores and the boxes kept are the same. Off by default: on 1,000 fresh
     generated frames it moved the shipped read's Car 2D AP|R40 moderate +0.75 [+0.05, +1.63] (paired
     95 %), Pedestrian +2.1 [+0.5, +3.5], Cyclist -1.2 [-4.3, +1.5], short of the rule written
-    for it (results/detector.md, stop 57)."""
+    for it (results/detector.md)."""
     models: tuple[FlexiNet, ...]
     input_size: tuple[int, int]  # network input (w, h)
     classes: tuple[str, ...]
@@ -184,7 +199,8 @@ class Detector:
         xs = torch.cat([x, x.flip(-1)]) if self.mirror else x
         blocks = []
         for model in self.models:
-            raw = model.predict_raw(xs)
+            with aten_convolutions():
+                raw = model.predict_raw(xs)
             blocks.append(raw[:n])
             if self.mirror:
                 back = raw[n:].clone()
@@ -227,10 +243,12 @@ def detect_dataset(root: str | Path, out_dir: str | Path, weights: str | Path | 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     results: dict[str, list[Object3D]] = {}
-    for i in tqdm(range(0, len(ids), batch), desc="detect", disable=not progress):
-        chunk = ids[i:i + batch]
-        for fid, d in zip(chunk, det.detect([ds.image(f) for f in chunk], conf_threshold, iou_threshold)):
-            objs = det.to_objects(d)
-            write_label(out_dir / f"{fid}.txt", objs)
-            results[fid] = objs
+    with tqdm(total=len(ids), desc="detect", unit="frame", disable=not progress) as bar:
+        for i in range(0, len(ids), batch):
+            chunk = ids[i:i + batch]
+            for fid, d in zip(chunk, det.detect([ds.image(f) for f in chunk], conf_threshold, iou_threshold)):
+                objs = det.to_objects(d)
+                write_label(out_dir / f"{fid}.txt", objs)
+                results[fid] = objs
+            bar.update(len(chunk))
     return results

@@ -95,6 +95,30 @@ class TrainConfig:
         return d
 
 
+# The augmentation's settings that `testbed train-detector` takes by their AugmentConfig names.
+AUGMENT_OPTIONS = ("mosaic", "scale", "fliplr", "photometric", "blur_sigma", "noise_prob",
+                   "noise_full_well", "jpeg_prob", "cutout_prob", "randconv_prob", "randconv_kernels",
+                   "randconv_keep_below", "mixup", "mixup_prob", "mixup_iou")
+
+
+def config_from_options(data, out, *, hsv: bool = True, wb_gain: float = AugmentConfig.gain,
+                        img_size=None, train_split: str = "train", val_split: str = "val",
+                        val_data=None, init_weights=None, **options) -> TrainConfig:
+    """The TrainConfig of `testbed train-detector`'s options: `data` one root or several, paths
+    as strings, `hsv` the colour jitter on or off, `wb_gain` the white balance's gain, a split
+    'all' every frame (None); AUGMENT_OPTIONS by AugmentConfig's names, the rest by TrainConfig's."""
+    aug = {k: options.pop(k) for k in AUGMENT_OPTIONS if k in options}
+    aug.update({k: tuple(aug[k]) for k in ("blur_sigma", "noise_full_well", "randconv_kernels") if k in aug})
+    augment = AugmentConfig(hsv=AugmentConfig().hsv if hsv else (0.0, 0.0, 0.0), gain=wb_gain, **aug)
+    roots = (data,) if isinstance(data, (str, Path)) else data
+    return TrainConfig(data=tuple(str(d) for d in roots), out=str(out),
+                       img_size=tuple(img_size) if img_size else None, augment=augment,
+                       train_split=None if train_split == "all" else train_split,
+                       val_split=None if val_split == "all" else val_split,
+                       val_data=str(val_data) if val_data else None,
+                       init=str(init_weights) if init_weights else None, **options)
+
+
 class ModelEMA:
     """Exponential moving average of the weights; the decay ramps up so early, poor weights fade fast."""
 

@@ -5,22 +5,35 @@ Depends on numpy, numba (exact IoU and the evaluation's loops), imageio (images)
 testbed's own.
 """
 
-from .boxes import (alpha_from_rotation_y, box_corners, lidar_upright_corners, points_in_boxes,
-                    project_boxes, rotation_y_from_alpha)
-from .calib import Calibration, read_calib, write_calib
-from .dataset import KittiDataset
-from .drives import read_drives
-from .errors import KittiFormatError
-from .iou import iou_2d, iou_3d, iou_bev
-from .labels import Object3D, boxes7, read_label, write_label
-from .planes import read_plane, write_plane
-from .splits import read_split, write_split
-from .velodyne import read_velodyne, write_velodyne
+from importlib import import_module
 
-__all__ = [
-    "Calibration", "KittiDataset", "KittiFormatError", "Object3D", "alpha_from_rotation_y",
-    "box_corners", "boxes7", "iou_2d", "iou_3d", "iou_bev", "lidar_upright_corners",
-    "points_in_boxes", "project_boxes", "read_calib", "read_drives", "read_label", "read_plane",
-    "read_split", "read_velodyne", "rotation_y_from_alpha", "write_calib", "write_label", "write_plane",
-    "write_split", "write_velodyne",
-]
+from .cpu import pin
+
+pin()  # before numpy loads: the same kernels, hence the same bytes, on every covered CPU
+
+# The public names, each loaded from its module at first use, so `import kitti` (which every
+# package does first, for the pins) costs nothing until a name is used: `testbed --help` loads
+# no numpy.
+_MODULE_OF = {
+    "alpha_from_rotation_y": "boxes", "box_corners": "boxes", "lidar_upright_corners": "boxes",
+    "points_in_boxes": "boxes", "project_boxes": "boxes", "rotation_y_from_alpha": "boxes",
+    "Calibration": "calib", "read_calib": "calib", "write_calib": "calib",
+    "KittiDataset": "dataset", "read_drives": "drives", "KittiFormatError": "errors",
+    "iou_2d": "iou", "iou_3d": "iou", "iou_bev": "iou",
+    "Object3D": "labels", "boxes7": "labels", "read_label": "labels", "write_label": "labels",
+    "read_plane": "planes", "write_plane": "planes", "read_split": "splits", "write_split": "splits",
+    "read_velodyne": "velodyne", "write_velodyne": "velodyne",
+}
+__all__ = sorted(_MODULE_OF)
+
+
+def __getattr__(name: str):
+    if name not in _MODULE_OF:
+        raise AttributeError(f"module 'kitti' has no attribute {name!r}")
+    value = getattr(import_module(f".{_MODULE_OF[name]}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

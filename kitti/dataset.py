@@ -41,14 +41,22 @@ class KittiDataset:
         return self.path("image_2", fid, "png")
 
     def image(self, fid: str) -> np.ndarray:
-        img = iio.imread(self.image_path(fid))
+        path = self.image_path(fid)
+        try:
+            img = iio.imread(path)
+        except (OSError, SyntaxError, ValueError) as e:  # imageio's decoders raise all three
+            raise KittiFormatError(f"cannot be read as an image ({e})", path) from None
         if img.ndim == 2:
             img = np.repeat(img[..., None], 3, axis=2)
         return img[..., :3]
 
     def image_size(self, fid: str) -> tuple[int, int]:
         """(width, height) of image_2."""
-        meta = iio.improps(self.image_path(fid))
+        path = self.image_path(fid)
+        try:
+            meta = iio.improps(path)
+        except (OSError, SyntaxError, ValueError) as e:
+            raise KittiFormatError(f"cannot be read as an image ({e})", path) from None
         return int(meta.shape[1]), int(meta.shape[0])
 
     def labels(self, fid: str) -> list[Object3D]:

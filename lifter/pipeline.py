@@ -128,22 +128,23 @@ def lift_dataset(data: str | Path, detections: Path | None, method: str, out: st
     out.mkdir(parents=True, exist_ok=True)
     outline = box_outline(data, det_dir, ids)
     total = 0
-    for fid in tqdm(ids, desc=f"lift {method}", disable=not progress):
-        # everything of the frame is read before its result is written (atomically): a frame
-        # that cannot be read stops the run with the file and field named, and the frames
-        # written before it stay as they are
-        labels = ds.labels(fid) if (det_dir is None or priors == "truth") else None
-        b2d = oracle_boxes(labels) if det_dir is None else read_detections(det_dir, fid)
-        if priors == "truth":
-            pr = truth_priors(b2d, labels)
-        else:
-            pr = predictor(_image(ds, fid), b2d) if b2d else []
-        planes = ds.planes(fid)
-        velo = ds.velodyne(fid) if m.loads_scan(planes is not None) else None
-        objs = lift_frame(method, b2d, pr, ds.calib(fid), _image_size(ds, fid), velo, planes,
-                          outline)
-        write_label(out / f"{fid}.txt", objs)
-        total += len(objs)
+    with tqdm(ids, desc=f"lift {method}", unit="frame", disable=not progress) as bar:
+        for fid in bar:
+            # everything of the frame is read before its result is written (atomically): a frame
+            # that cannot be read stops the run with the file and field named, and the frames
+            # written before it stay as they are
+            labels = ds.labels(fid) if (det_dir is None or priors == "truth") else None
+            b2d = oracle_boxes(labels) if det_dir is None else read_detections(det_dir, fid)
+            if priors == "truth":
+                pr = truth_priors(b2d, labels)
+            else:
+                pr = predictor(_image(ds, fid), b2d) if b2d else []
+            planes = ds.planes(fid)
+            velo = ds.velodyne(fid) if m.loads_scan(planes is not None) else None
+            objs = lift_frame(method, b2d, pr, ds.calib(fid), _image_size(ds, fid), velo, planes,
+                              outline)
+            write_label(out / f"{fid}.txt", objs)
+            total += len(objs)
     return total
 
 

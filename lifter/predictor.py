@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -42,6 +43,19 @@ def forward_mirrored(net: SizeOrientationNet, x: torch.Tensor, cls: torch.Tensor
     return (dims[:n] + dims[n:]) / 2, (conf[:n] + conf[n:]) / 2, (cs[:n] + cs_m) / 2
 
 
+@contextmanager
+def aten_convolutions():
+    """Convolutions by ATen on MKL's COMPATIBLE branch (pinned by kitti.cpu) rather than oneDNN,
+    whose algorithm follows the thread count and whose blocking follows the CPU: the same bits
+    on every covered CPU (detector.infer.aten_convolutions; the two packages share no module)."""
+    before = torch.backends.mkldnn.enabled
+    torch.backends.mkldnn.enabled = False
+    try:
+        yield
+    finally:
+        torch.backends.mkldnn.enabled = before
+
+
 class Predictor:
     """Batched inference: one forward pass per frame (the crops and their mirror images)."""
 
@@ -62,6 +76,7 @@ class Predictor:
             return []
         x = to_tensor_layout(np.stack([crop(image, b.bbox, self.size) for b in boxes]))
         cls = torch.tensor([CLASS_OF.get(b.type, 0) for b in boxes])
-        dims, conf, cs = forward_mirrored(self.net, torch.from_numpy(x), cls, self.mirror)
+        with aten_convolutions():
+            dims, conf, cs = forward_mirrored(self.net, torch.from_numpy(x), cls, self.mirror)
         alpha = decode(conf.numpy(), cs.numpy())
         return [Prior(d.astype(float), float(a)) for d, a in zip(dims.numpy(), alpha)]

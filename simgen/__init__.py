@@ -5,3 +5,5 @@ rigs) -> render (pyrender colour, depth, instance ids) + look (weather, sensor) 
 (derived from the geometry and the renders) -> generate (the KITTI writer, meta/ via meta).
 The LiDAR lives in simgen.lidar and scans the same World.
 """
+
+import kitti  # noqa: F401  (first: pins the CPU kernels before numpy loads)

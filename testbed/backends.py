@@ -16,6 +16,8 @@ from typing import Any, Callable, Sequence
 
 from tqdm import tqdm
 
+from kitti.cpu import pins
+
 
 def _render_threads(workers: int) -> str:
     """Each worker's share of the cores for Mesa's software rasteriser (read at GL start-up)."""
@@ -36,6 +38,16 @@ GC_THRESHOLD = (20000, 20, 20)
 BLAS_THREAD_VARS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
 
 
+# What a progress bar counts, by the first word of its stage's `desc`: the per-frame stages
+# (generate, rescan, relabel, reduce beams) map one job per frame; a sweep's lift-and-evaluate
+# ("points") and bootstrap jobs are one per point, fidelity's are chunks of frames.
+UNITS = {"points": "point", "bootstrap": "point", "fidelity": "chunk", "jobs": "job"}
+
+
+def _unit(desc: str) -> str:
+    return UNITS.get(desc.split(" ", 1)[0], "frame")
+
+
 def _init_worker(threads: str) -> None:
     os.environ.setdefault("LP_NUM_THREADS", threads)
     gc.set_threshold(*GC_THRESHOLD)
@@ -52,7 +64,8 @@ class LocalBackend:
     def map(self, fn: Callable[[Any], Any], jobs: Sequence[Any], desc: str = "jobs") -> list[Any]:
         jobs = list(jobs)
         if self.workers <= 1 or len(jobs) <= 1:
-            return [fn(j) for j in tqdm(jobs, desc=desc, unit="job")]
+            with tqdm(jobs, desc=desc, unit=_unit(desc)) as bar:  # closed before an error is shown
+                return [fn(j) for j in bar]
         if self._pool is None:
             for var in BLAS_THREAD_VARS:  # inherited by the spawned workers
                 os.environ.setdefault(var, "1")
@@ -61,8 +74,10 @@ class LocalBackend:
                                              initargs=(_render_threads(self.workers),))
         results: list[Any] = [None] * len(jobs)
         futures = {self._pool.submit(fn, j): i for i, j in enumerate(jobs)}
-        for fut in tqdm(as_completed(futures), total=len(jobs), desc=desc, unit="job"):
-            results[futures[fut]] = fut.result()
+        with tqdm(total=len(jobs), desc=desc, unit=_unit(desc)) as bar:
+            for fut in as_completed(futures):
+                results[futures[fut]] = fut.result()
+                bar.update(1)
         return results
 
     def close(self) -> None:
@@ -91,8 +106,11 @@ class RayBackend:
             raise RuntimeError("the Ray backend needs `pip install -e .[ray]`") from e
         self._started = not ray.is_initialized()
         if self._started:
+            # Ray's workers load numpy before they unpickle a job: the kernel pins (kitti.cpu) must
+            # be in their environment from the start, on this host and on a cluster's.
             kwargs: dict[str, Any] = dict(include_dashboard=False, log_to_driver=False,
-                                          configure_logging=False)
+                                          configure_logging=False,
+                                          runtime_env={"env_vars": pins()})
             if self.address:
                 ray.init(address=self.address, **kwargs)
             else:  # the local workers inherit this process's environment
@@ -107,7 +125,7 @@ class RayBackend:
         index = {ref: i for i, ref in enumerate(refs)}
         results: list[Any] = [None] * len(refs)
         pending = list(refs)
-        with tqdm(total=len(refs), desc=desc, unit="job") as bar:
+        with tqdm(total=len(refs), desc=desc, unit=_unit(desc)) as bar:
             while pending:
                 done, pending = ray.wait(pending, num_returns=1)
                 for ref in done:

@@ -6,16 +6,16 @@ from pathlib import Path
 
 import click
 
+from .options import data_option, split_name, split_option
+
 
 @click.command()
-@click.option("--data", required=True, type=click.Path(exists=True, file_okay=False, path_type=Path),
-              help="KITTI-format dataset root (ours or real KITTI).")
+@data_option()
 @click.option("--out", required=True, type=click.Path(file_okay=False, path_type=Path),
               help="Folder for the result files (<id>.txt, one per frame, empty when nothing is found).")
 @click.option("--weights", type=click.Path(exists=True, dir_okay=False, path_type=Path),
               help="Checkpoint [default: the shipped detector/weights/flexinet_small.pt].")
-@click.option("--split", default="val", show_default=True,
-              help="ImageSets/<split>.txt; 'all' for every frame with an image.")
+@split_option()
 @click.option("--part", default="training", show_default=True, type=click.Choice(["training", "testing"]))
 @click.option("--conf", default=0.01, show_default=True, type=click.FloatRange(0, 1),
               help="Lowest score written (AP needs the low-score tail).")
@@ -36,8 +36,9 @@ import click
                    "of one view, --no-mirror --scales 1, has nothing to fuse).")
 def detect(data: Path, out: Path, weights: Path | None, split: str, part: str, conf: float, iou: float,
            batch: int, threads: int, mirror: bool, scales: str | None, fuse_boxes: bool) -> None:
-    """Detect Car, Pedestrian and Cyclist in every frame of DATA's split; boxes are mapped back
-    from the letterboxed input to exact image pixels; 3D fields are the format's placeholders."""
+    """Detect Car, Pedestrian and Cyclist in every frame of the --split of --data; boxes are
+    mapped back from the letterboxed input to exact image pixels; 3D fields are the format's
+    placeholders."""
     import torch
 
     from detector.infer import detect_dataset, parse_scales
@@ -49,7 +50,7 @@ def detect(data: Path, out: Path, weights: Path | None, split: str, part: str, c
     except ValueError as e:
         raise click.BadParameter(str(e), param_hint="--scales") from None
     try:
-        res = detect_dataset(data, out, weights, None if split == "all" else split, part, batch, conf, iou,
+        res = detect_dataset(data, out, weights, split_name(split), part, batch, conf, iou,
                              mirror=mirror, scales=factors, fuse_boxes=fuse_boxes)
     except (KittiFormatError, ValueError, FileNotFoundError) as e:
         raise click.ClickException(str(e)) from None

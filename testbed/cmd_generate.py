@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import click
+
+from .options import lidar_option, workers_option
 
 
 @click.command()
@@ -14,14 +15,16 @@ import click
               help="Dataset root (KITTI layout); an interrupted run resumes here.")
 @click.option("--frames", type=click.IntRange(min=1), help="Number of frames [default: the spec's].")
 @click.option("--seed", type=click.IntRange(min=0), help="Seed [default: the spec's].")
-@click.option("--workers", type=click.IntRange(min=1), default=min(2, os.cpu_count() or 1),
-              show_default=True, help="Worker processes (1: render in this process).")
-@click.option("--lidar", "lidar_preset", help="LiDAR preset (overrides the spec's lidar:); 'none' for none.")
+@workers_option("Worker processes (1: render in this process); the same output bytes whatever N.")
+@lidar_option(none=True, help="overrides the spec's lidar:")
 @click.option("--beams", type=click.IntRange(min=1), help="Beams of the --lidar preset.")
 @click.option("--max-range", type=click.FloatRange(min=0, min_open=True), help="Max range of the --lidar preset, m.")
 def generate(spec_path: Path, out: Path, frames: int | None, seed: int | None, workers: int,
              lidar_preset: str | None, beams: int | None, max_range: float | None) -> None:
-    """Render, label and write the frames of SPEC (scenes/*.yaml) under --out."""
+    """Render, label and write the frames of SPEC (scenes/*.yaml) under --out.
+
+    SPEC is a scene spec, not a dataset; the dataset written under --out is what the other
+    commands read with --data ROOT."""
     from simgen.generate import generate as write_dataset
     from simgen.spec import LidarSection, SpecError, load_spec
 

@@ -8,16 +8,17 @@ import click
 
 from lifter.methods import METHODS
 
+from .options import data_option, split_name, split_option
+
 
 @click.command()
-@click.option("--data", required=True, type=click.Path(exists=True, file_okay=False, path_type=Path),
-              help="KITTI-format dataset root.")
+@data_option()
 @click.option("--boxes", required=True,
               help="'gt' (the label_2 boxes of the road users, oracle) or a folder of "
                    "detection result files (testbed detect).")
 @click.option("--method", required=True, type=click.Choice(list(METHODS)),
               help="; ".join(f"{m.name}: {m.summary}" for m in METHODS.values()))
-@click.option("--split", default=None, help="ImageSets/<split>.txt [default: every frame].")
+@split_option()
 @click.option("--out", required=True, type=click.Path(file_okay=False, path_type=Path),
               help="Folder for the result files (<id>.txt).")
 @click.option("--priors", type=click.Choice(["net", "truth"]), default="net", show_default=True,
@@ -26,15 +27,15 @@ from lifter.methods import METHODS
               help="Size/orientation checkpoint [default: the shipped lifter/weights].")
 @click.option("--mirror/--no-mirror", default=True, show_default=True,
               help="The network reads each crop and its mirror image (twice its work).")
-def lift(data: Path, boxes: str, method: str, split: str | None, out: Path, priors: str,
+def lift(data: Path, boxes: str, method: str, split: str, out: Path, priors: str,
          weights: Path | None, mirror: bool) -> None:
-    """Lift the 2D boxes of every frame of DATA's split to 3D with METHOD."""
+    """Lift the 2D boxes of every frame of the --split of --data to 3D with METHOD."""
     from kitti.errors import KittiFormatError
     from lifter.pipeline import lift_dataset
 
     try:
         detections = None if boxes == "gt" else Path(boxes)
-        n = lift_dataset(data, detections, method, out, split, priors=priors, weights=weights,
+        n = lift_dataset(data, detections, method, out, split_name(split), priors=priors, weights=weights,
                          mirror=mirror)
     except (KittiFormatError, ValueError, FileNotFoundError) as e:
         raise click.ClickException(str(e)) from None

@@ -2,14 +2,15 @@
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import click
 
+from .options import data_option, workers_option
+
 
 @click.command()
-@click.argument("dataset", type=click.Path(exists=True, file_okay=False, path_type=Path))
+@data_option("Dataset root written by `testbed generate` (its rules and worlds are read from meta/).")
 @click.option("--out", required=True, type=click.Path(file_okay=False, path_type=Path),
               help="New dataset root; an interrupted run resumes here.")
 @click.option("--min-height-px", type=float, help="2D box height below which a row is DontCare.")
@@ -19,14 +20,13 @@ import click
               help="LiDAR returns on an object below which its row is DontCare (0: no such rule).")
 @click.option("--silhouette-sides", help="Comma-separated classes whose 2D box sides come from "
                                          "the silhouette ('' for none).")
-@click.option("--workers", type=click.IntRange(min=1), default=min(2, os.cpu_count() or 1),
-              show_default=True, help="Worker processes (1: in this process).")
-def relabel(dataset: Path, out: Path, min_height_px: float | None, max_distance: float | None,
+@workers_option()
+def relabel(data: Path, out: Path, min_height_px: float | None, max_distance: float | None,
             min_visible_share: float | None, min_lidar_points: int | None,
             silhouette_sides: str | None, workers: int) -> None:
-    """Label every frame of DATASET (written by `testbed generate`) again into --out.
+    """Label every frame of the dataset at --data (written by `testbed generate`) again into --out.
 
-    Rules not given stay those DATASET was generated with. Images, scans and everything else
+    Rules not given stay those the dataset was generated with. Images, scans and everything else
     are linked, unchanged; with the same rules the labels and meta come out byte for byte."""
     from pydantic import ValidationError
 
@@ -41,11 +41,11 @@ def relabel(dataset: Path, out: Path, min_height_px: float | None, max_distance:
              "silhouette_sides": (None if silhouette_sides is None else
                                   tuple(c.strip() for c in silhouette_sides.split(",") if c.strip()))}
     try:
-        rules = source_rules(dataset).model_dump()
+        rules = source_rules(data).model_dump()
         rules.update({k: v for k, v in asked.items() if v is not None})
         rules = LabelRules.model_validate(rules)
         with LocalBackend(workers) as backend:
-            ids = relabel_dataset(dataset, out, rules, backend)
+            ids = relabel_dataset(data, out, rules, backend)
     except ValidationError as e:
         raise click.ClickException("; ".join(_option_error(err) for err in e.errors())) from None
     except ValueError as e:

@@ -2,18 +2,18 @@
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import click
 
+from .options import data_option, lidar_option, workers_option
+
 
 @click.command()
-@click.argument("dataset", type=click.Path(exists=True, file_okay=False, path_type=Path))
+@data_option("Dataset root written by `testbed generate` (its worlds are rebuilt from meta/).")
 @click.option("--out", required=True, type=click.Path(file_okay=False, path_type=Path),
               help="New dataset root; an interrupted run resumes here.")
-@click.option("--lidar", "lidar_preset", required=True,
-              help="Preset: hdl64e, hdl32e, vlp32c, vlp16 or uniform.")
+@lidar_option(required=True)
 @click.option("--beams", type=click.IntRange(min=1),
               help="Beams: on a real preset every k-th laser (N must divide its count); "
                    "on 'uniform' any N spread over +2..-24.9 deg.")
@@ -23,12 +23,11 @@ import click
               help="LiDAR-only weather: fog extinction beta (1/m) instead of the world's.")
 @click.option("--rain-rate", type=click.FloatRange(min=0),
               help="LiDAR-only weather: rain rate (mm/h) instead of the world's.")
-@click.option("--workers", type=click.IntRange(min=1), default=min(2, os.cpu_count() or 1),
-              show_default=True, help="Worker processes (1: in this process).")
-def rescan(dataset: Path, out: Path, lidar_preset: str, beams: int | None,
+@workers_option()
+def rescan(data: Path, out: Path, lidar_preset: str, beams: int | None,
            max_range: float | None, fog_extinction: float | None, rain_rate: float | None,
            workers: int) -> None:
-    """Rebuild every frame's world of DATASET from meta/ and scan it again into --out.
+    """Rebuild every frame's world of the dataset at --data from meta/ and scan it again into --out.
 
     --fog-extinction / --rain-rate change the weather the LiDAR sees (a sensor study: images and
     labels stay those of the world's own weather)."""
@@ -44,7 +43,7 @@ def rescan(dataset: Path, out: Path, lidar_preset: str, beams: int | None,
                             weather)
     try:
         with LocalBackend(workers) as backend:
-            ids = rescan_dataset(dataset, out, request, backend)
+            ids = rescan_dataset(data, out, request, backend)
     except ValueError as e:
         raise click.ClickException(str(e)) from None
     click.echo(f"{len(ids)} frames rescanned with {lidar_preset} in {out}")

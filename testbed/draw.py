@@ -108,7 +108,8 @@ def draw_frame(dataset: KittiDataset, fid: str, pred_dir: str | Path | None = No
                 if o.score is None or o.score >= min_score]
     h, w = image.shape[:2]
     fig = plt.figure(figsize=(16, 16 * 0.3), dpi=110)
-    gs = fig.add_gridspec(1, 2, width_ratios=[w / h, 1.0], wspace=0.04)
+    # the gap holds the bird's-eye view's tick labels and axis label clear of the image
+    gs = fig.add_gridspec(1, 2, width_ratios=[w / h, 1.0], wspace=0.16)
     ax_img, ax_bev = fig.add_subplot(gs[0]), fig.add_subplot(gs[1])
     ax_img.imshow(image)
     draw_image(ax_img, image, calib, truth, "-")

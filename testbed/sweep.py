@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import itertools
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Literal
 
@@ -149,6 +150,13 @@ class Plan:
     scans: list[ScanConfig] = field(default_factory=list)
     points: list[Point] = field(default_factory=list)
 
+    @cached_property
+    def versions(self) -> tuple[str, str]:
+        """(`generator_key`, `models_key`), taken once: every stage of a run and whatever reads its
+        folders afterwards (`testbed.uncertainty`) name the same folders, even where the code
+        changes while it runs."""
+        return generator_key(), models_key()
+
     def points_dir(self, models: str) -> Path:
         """Lifted boxes and evaluations, per set of model weights."""
         return self.root / f"points-{models}"
@@ -160,6 +168,17 @@ class Plan:
     def scan_dir(self, scene: str, generator: str, scan: ScanConfig) -> Path:
         """One scan configuration of a scene's worlds, per version of the generator."""
         return self.root / scene / f"scans-{generator}" / scan.key
+
+    def data_dir(self, pt: Point, generator: str) -> Path:
+        """The dataset a point lifts from: its scan of the scene's worlds, or the generated frames
+        themselves for a method that needs no scan."""
+        if pt.scan is None:
+            return self.base_dir(pt.scene, generator)
+        return self.scan_dir(pt.scene, generator, pt.scan)
+
+    def point_dir(self, pt: Point, generator: str, models: str) -> Path:
+        """A point's lifted boxes (`pred/`) and evaluation (`eval.json`)."""
+        return self.points_dir(f"{generator}-{models}") / pt.key
 
 
 def plan(spec: SweepSpec, root: Path | None = None) -> Plan:
@@ -234,7 +253,7 @@ def generator_key() -> str:
 def execute(p: Plan, backend: Backend) -> list[tuple[Point, dict]]:
     """Run every stage not yet marked done on `backend`; return each point with its evaluation."""
     spec = p.spec
-    models, generator = models_key(), generator_key()
+    generator, models = p.versions
     bases, detections = {}, {}
     for scene in spec.scenes:
         name = scene_name(scene)
@@ -251,10 +270,8 @@ def execute(p: Plan, backend: Backend) -> list[tuple[Point, dict]]:
                          for (n, c), d in scan_dirs.items() if c.mode == "dropped"], backend)
     jobs = []
     for pt in p.points:
-        data = scan_dirs[pt.scene, pt.scan] if pt.scan else bases[pt.scene]
         dets = detections[pt.scene] if pt.boxes == "detector" else None
-        jobs.append(stages.LiftJob(data, dets, pt.method, spec.split,
-                                   p.points_dir(f"{generator}-{models}") / pt.key,
-                                   tuple(spec.range_bins)))
+        jobs.append(stages.LiftJob(p.data_dir(pt, generator), dets, pt.method, spec.split,
+                                   p.point_dir(pt, generator, models), tuple(spec.range_bins)))
     results = backend.map(stages.lift_and_evaluate, jobs, desc="points")
     return list(zip(p.points, results))

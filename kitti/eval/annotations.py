@@ -22,7 +22,8 @@ def load_annotations(label_dir: str | Path, ids: Iterable[str] | None = None,
     it = ids
     if progress:
         from tqdm import tqdm
-        it = tqdm(ids, desc=f"reading {label_dir.name}", leave=False)
+        it = tqdm(ids, desc=f"reading {label_dir.name}", unit="frame", leave=False, delay=0.5,
+                  disable=None)  # as kitti.eval.evaluate's bars: on a terminal, for a slow read
     out = {}
     for fid in it:
         path = label_dir / f"{fid}.txt"

@@ -17,11 +17,17 @@ from .report import EvalResult
 from .volumetric import DEFAULT_MAX_DISTANCE
 
 
-def _progress(items: list, on: bool, desc: str):
+PROGRESS_DELAY = 0.5  # seconds before a step's bar shows: a quick step draws none, not an empty one
+
+
+def _progress(items: list, on: bool, desc: str, unit: str | None = None):
+    """`items` with a bar counting `unit`, shown on a terminal only and once the step has taken
+    PROGRESS_DELAY, and cleared when done (no empty bars, no blank lines left in the output)."""
     if not on:
         return items
     from tqdm import tqdm  # only when a progress bar is asked for
-    return tqdm(items, desc=desc, leave=False)
+    return tqdm(items, desc=desc, unit=unit or {"bootstrap": "draw"}.get(desc, "it"), leave=False,
+                delay=PROGRESS_DELAY, disable=None)
 
 
 def _absent(p: Packed, cls: str, metrics: Sequence[str]) -> dict:
@@ -129,7 +135,7 @@ def _range_bins(p: Packed, classes: list[str], metrics: list[str], absent: dict,
     gt_bin, dt_bin = breakdown.bin_index(p.gt.distance, edges), breakdown.bin_index(p.dt.distance, edges)
     out = {"edges": edges.tolist(), "distance": "ground (camera x-z) distance of the location",
            "bins": []}
-    for k in _progress(list(range(len(edges) - 1)), progress, "range bins"):
+    for k in _progress(list(range(len(edges) - 1)), progress, "range bins", "bin"):
         entry = {"range": [float(edges[k]), float(edges[k + 1])], "ap": {}, "n_gt": {},
                  "ap_r40_measured": {}}
         for cls in classes:
@@ -169,7 +175,7 @@ def evaluate(gt: Mapping[str, Sequence[Object3D]], dt: Mapping[str, Sequence[Obj
     dc_ov = dontcare_overlap(p.dt, p.dc)
 
     ap, ap_loose, n_gt, recall, precision, absent, measured = {}, {}, {}, {}, {}, {}, {}
-    for cls in _progress(classes, progress, "AP"):
+    for cls in _progress(classes, progress, "AP", "class"):
         b, loose, ab = class_ap(p, cls, metrics, ovs, dc_ov)
         ap_loose[cls] = loose.ap
         if ab:

@@ -6,10 +6,10 @@ scans, images and labels, as one streaming pass per dataset, a table of verdicts
     write_report(comp, out_dir)            # report.md, fidelity.json, lidar/images/labels.png
 """
 
-from .collect import compute_stats
+from .collect import UnreadableFrame, compute_stats
 from .compare import Comparison, Row, ToleranceError, Tolerances, compare, load_tolerances
 from .report import write_report
 from .stats import DatasetStats
 
 __all__ = ["Comparison", "DatasetStats", "Row", "ToleranceError", "Tolerances", "compare",
-           "compute_stats", "load_tolerances", "write_report"]
+           "UnreadableFrame", "compute_stats", "load_tolerances", "write_report"]

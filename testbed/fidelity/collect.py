@@ -1,5 +1,6 @@
 """One streaming pass over a dataset root: chunks of frame ids go to worker processes, each
-returns only its accumulators, and a frame that cannot be read is skipped with its error."""
+returns only its accumulators, and a frame that cannot be read is skipped with its error (or,
+asked, stops the pass naming its file: `UnreadableFrame`)."""
 
 from __future__ import annotations
 
@@ -20,16 +21,24 @@ from .lidar import lidar_stats
 from .stats import Acc, DatasetStats, merge
 
 MAX_CHUNK = 32
+UNREADABLE = ("warn", "skip", "raise")  # what compute_stats does with a frame it cannot read
+
+
+class UnreadableFrame(KittiFormatError):
+    """A frame that cannot be read, when the pass is asked to stop there; the message names the
+    frame, the root and the file."""
 
 
 @dataclass(frozen=True)
 class ChunkJob:
-    """A few consecutive frame ids of one root, and which optional groups it has."""
+    """A few consecutive frame ids of one root, which optional groups it has, and whether a frame
+    that cannot be read is skipped (recorded with its error) or stops the pass."""
 
     root: str
     ids: tuple[str, ...]
     lidar: bool
     labels: bool
+    skip_unreadable: bool = True
 
 
 def run_chunk(job: ChunkJob) -> Acc:
@@ -48,6 +57,8 @@ def run_chunk(job: ChunkJob) -> Acc:
                 if job.lidar and scan is None:
                     raise KittiFormatError("no such file", ds.path("velodyne", fid, "bin"))
             except (KittiFormatError, OSError) as e:
+                if not job.skip_unreadable:
+                    raise UnreadableFrame(f"frame {fid} of {job.root} cannot be read: {e}") from None
                 acc.skipped.append((fid, str(e)))
                 continue
             acc.frames.append(fid)
@@ -65,9 +76,15 @@ def run_chunk(job: ChunkJob) -> Acc:
 
 
 def compute_stats(root: str | Path, split: str | None = None, frames: int | None = None,
-                  backend: Backend | None = None) -> DatasetStats:
+                  backend: Backend | None = None, unreadable: str = "warn") -> DatasetStats:
     """Statistics of the first `frames` ids of `split` (default: every frame with an image), with
-    the chunks mapped on `backend` (default: in this process)."""
+    the chunks mapped on `backend` (default: in this process).
+
+    A frame that cannot be read (`unreadable`): "warn", skipped with a warning; "skip", skipped
+    silently (both listed in `DatasetStats.skipped`, with the error naming the file); "raise",
+    the pass stops with `UnreadableFrame`."""
+    if unreadable not in UNREADABLE:
+        raise ValueError(f"unreadable must be one of {UNREADABLE}, got {unreadable!r}")
     ds = KittiDataset(root)
     ids = ds.ids(split)[:frames]
     groups = {"images": True, "lidar": (ds.dir / "velodyne").is_dir(),
@@ -75,10 +92,10 @@ def compute_stats(root: str | Path, split: str | None = None, frames: int | None
     backend = backend or InProcess()
     workers = getattr(backend, "workers", None) or 2
     size = max(1, min(MAX_CHUNK, math.ceil(len(ids) / (4 * workers))))
-    jobs = [ChunkJob(str(root), tuple(ids[i:i + size]), groups["lidar"], groups["labels"])
-            for i in range(0, len(ids), size)]
-    parts = backend.map(run_chunk, jobs, desc=f"fidelity {Path(root).name}")
+    jobs = [ChunkJob(str(root), tuple(ids[i:i + size]), groups["lidar"], groups["labels"],
+                     unreadable != "raise") for i in range(0, len(ids), size)]
+    parts = backend.map(run_chunk, jobs, desc=f"fidelity {Path(root).name} ({len(ids)} frames)")
     stats = merge(str(root), split, groups, parts)
-    for fid, err in stats.skipped:
+    for fid, err in stats.skipped if unreadable == "warn" else ():
         warnings.warn(f"fidelity: skipping frame {fid} of {root}: {err}", stacklevel=2)
     return stats

@@ -176,3 +176,15 @@ def test_dataset_root(tmp_path):
 def test_atomic_write_text_creates_folders(tmp_path):
     atomic_write_text(tmp_path / "a" / "b" / "c.txt", "x")
     assert (tmp_path / "a" / "b" / "c.txt").read_text() == "x"
+
+
+def test_a_truncated_image_is_named(tmp_path):
+    from kitti import KittiDataset, KittiFormatError
+
+    folder = tmp_path / "training" / "image_2"
+    folder.mkdir(parents=True)
+    (folder / "000000.png").write_bytes(b"\x89PNG\r\n\x1a\n" + b"\0" * 20)
+    ds = KittiDataset(tmp_path)
+    for read in (ds.image, ds.image_size):
+        with pytest.raises(KittiFormatError, match=r"000000\.png: cannot be read as an image"):
+            read("000000")

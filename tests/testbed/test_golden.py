@@ -4,20 +4,28 @@ and the same sweep on the local and the Ray backend giving the same files."""
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 
 import pytest
 
+from kitti.splits import read_split
 from testbed.backends import LocalBackend, RayBackend
-from testbed.golden import EXPECTED, compute, differences
+from testbed.golden import EXPECTED, ap_tolerance, compute, differences, outcomes
 from testbed.sweep import execute, load_sweep, plan
 
 ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")
-def golden(tmp_path_factory) -> dict:
-    return compute(tmp_path_factory.mktemp("golden"), workers=2)
+def golden_run(tmp_path_factory) -> tuple[Path, dict]:
+    root = tmp_path_factory.mktemp("golden")
+    return root, compute(root, workers=2)
+
+
+@pytest.fixture(scope="module")
+def golden(golden_run) -> dict:
+    return golden_run[1]
 
 
 def test_golden_bounds(golden):
@@ -39,17 +47,51 @@ def test_golden_numbers_match_the_committed_expectation(golden):
     assert differences(golden, json.loads(EXPECTED.read_text())) == []
 
 
+def test_one_lifted_car_moved_by_a_centimetre_is_caught(golden_run):
+    """What a one-line change to the lifter does to one car: its box in one frame's result file
+    moves 1 cm sideways. Only that Car is named; the AP tier lets it through (one car's
+    centimetre is no flip), the per-object tier does not."""
+    root, golden = golden_run
+    point = "hdl64e-64b-native-max/fit-gt"
+    pred = next(root.rglob(f"{point}/pred"))
+    data = next(p for p in root.rglob("hdl64e-64b-native-max") if (p / "training").is_dir())
+    moved = root / "moved"
+    shutil.copytree(pred, moved)
+    fid, line, target = next(r.split()[:3] for r in golden[point]["objects"] if r.split()[2] != "-1")
+    rows = (moved / f"{fid}.txt").read_text().splitlines()
+    fields = rows[int(target)].split()
+    fields[11] = f"{float(fields[11]) + 0.01:.2f}"  # location x
+    rows[int(target)] = " ".join(fields)
+    (moved / f"{fid}.txt").write_text("\n".join(rows) + "\n")
+    ids = read_split(data / "ImageSets" / "val.txt")
+    changed = {**golden, point: {**golden[point], "objects": outcomes(data / "training" / "label_2", moved, ids)}}
+    assert outcomes(data / "training" / "label_2", pred, ids) == golden[point]["objects"]
+    found = differences(changed, golden)
+    assert len(found) >= 1 and all(f.startswith(f"{point} frame {fid} Car on label line {line}:") for f in found)
+    assert len(found) == 1 and "dx " in found[0]
+
+
 def test_differences_name_what_moved_beyond_its_tolerance():
-    want = {"p": {"3d_r40": [80.0, 70.0, 60.0], "3d_r40_moderate_by_range": {"0": 75.0, "20": None},
-                  "matched": 12, "centre_median": 0.20}}
-    got = {"p": {"3d_r40": [80.5, 69.4, 60.0], "3d_r40_moderate_by_range": {"0": 75.0, "20": 3.0},
-                 "matched": 11, "centre_median": 0.209}}
+    point = {"objects": ["000001 0 2 0.8000 0.1000 0.0 0.0500 0.0 0.0 0.0 1.000", "000001 3 -1 0" + " 0" * 7],
+             "n_gt": [10, 20, 25], "n_gt_moderate_by_range": {"0": 5, "20": 0}, "matched": 12,
+             "3d_r40": [80.0, 70.0, 60.0], "bev_r40": [80.0, 70.0, 60.0], "3d_loose_r40": [80.0, 70.0, 60.0],
+             "3d_r40_moderate_by_range": {"0": 75.0, "20": None},
+             "centre_median": 0.20, "depth_median": 0.1, "yaw_deg_median": 1.0}
+    want = {"p": point}
     assert differences(want, want) == []
-    # AP within 0.5 points passes, 0.6 does not; None against a number moves; the count exactly;
-    # errors within 0.01
-    assert differences(got, want) == ["p.3d_r40[1]: 69.4 != 70.0 (tolerance 0.5)",
-                                      "p.3d_r40_moderate_by_range.20: 3.0 != None",
-                                      "p.matched: 11 != 12 (tolerance 0.0)"]
+    assert ap_tolerance(20) == 2.5 and ap_tolerance(0) == 0.0
+    # AP within 50/N points passes (N = 20 moderate: 2.5), beyond does not; a count exactly;
+    # None against a number moves; each Car's outcome within its tolerance
+    got = {"p": {**point, "3d_r40": [84.9, 67.4, 60.0], "matched": 11,
+                 "3d_r40_moderate_by_range": {"0": 75.0, "20": 3.0},
+                 "objects": ["000001 0 2 0.8000 0.1050 0.0 0.0500 0.0 0.0 0.0 1.000",
+                             "000001 3 4 0.1 0.5 0.2 3.0 0 0 0 0"]}}
+    assert differences(got, want) == [
+        "p frame 000001 Car on label line 0: dx 0.1050 != 0.1000",
+        "p frame 000001 Car on label line 3: lifted Car 4, expected -1",
+        "p.matched: 11 != 12",
+        "p.3d_r40[1]: 67.4000 != 70.0000 (tolerance 2.5)",
+        "p.3d_r40_moderate_by_range.20: 3.0 != None"]
     assert differences({}, want) == ["p: not computed"]
     assert differences({**want, "q": {}}, want) == ["q: not in the expectation"]
 

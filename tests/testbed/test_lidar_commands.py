@@ -41,7 +41,7 @@ def _files(root):
 def test_rescan_same_sensor_reproduces_the_dataset(source, tmp_path):
     out = tmp_path / "same"
     # urban.yaml's sensor: the HDL-64E cut at 80 m, as KITTI's scans are
-    _run("rescan", source, "--out", out, "--lidar", "hdl64e", "--max-range", 80, "--workers", 1)
+    _run("rescan", "--data", source, "--out", out, "--lidar", "hdl64e", "--max-range", 80, "--workers", 1)
     files = _files(source)
     assert len(files) >= 8  # image, depth, instance, label, calib, plane, scan, side file, meta...
     for rel in files:
@@ -50,7 +50,7 @@ def test_rescan_same_sensor_reproduces_the_dataset(source, tmp_path):
 
 def test_rescan_other_sensor_changes_only_the_lidar(source, tmp_path):
     out = tmp_path / "vlp16"
-    _run("rescan", source, "--out", out, "--lidar", "vlp16", "--workers", 1)
+    _run("rescan", "--data", source, "--out", out, "--lidar", "vlp16", "--workers", 1)
     changed = {r for r in _files(source) if (out / r).read_bytes() != (source / r).read_bytes()}
     assert {r.parts[1] for r in changed if r.parts[0] == "training"} == \
         {"velodyne", "velodyne_info", "meta"}
@@ -67,9 +67,9 @@ def test_rescan_other_sensor_changes_only_the_lidar(source, tmp_path):
     assert any(a["lidar_points"] > 0 for a in meta["actors"])
     # resumable: a second run is a no-op; another request into the same root is refused
     before = (out / "training/velodyne/000000.bin").stat().st_mtime_ns
-    _run("rescan", source, "--out", out, "--lidar", "vlp16", "--workers", 1)
+    _run("rescan", "--data", source, "--out", out, "--lidar", "vlp16", "--workers", 1)
     assert (out / "training/velodyne/000000.bin").stat().st_mtime_ns == before
-    res = CliRunner().invoke(cli, ["rescan", str(source), "--out", str(out), "--lidar", "hdl32e"])
+    res = CliRunner().invoke(cli, ["rescan", "--data", str(source), "--out", str(out), "--lidar", "hdl32e"])
     assert res.exit_code != 0 and "different request" in res.output
 
 
@@ -145,7 +145,7 @@ def test_rescan_with_lidar_weather_keeps_the_images_and_loses_far_returns(source
     """--fog-extinction changes what the LiDAR sees only: beta = 0.03/m (visibility 100 m) takes the
     two-way loss exp(-2 beta d) to 0.09 at 40 m, so far returns vanish and scatter appears near."""
     out = tmp_path / "fog"
-    _run("rescan", source, "--out", out, "--lidar", "hdl64e", "--fog-extinction", 0.03,
+    _run("rescan", "--data", source, "--out", out, "--lidar", "hdl64e", "--fog-extinction", 0.03,
          "--workers", 1)
     for rel in ("training/image_2/000000.png", "training/label_2/000000.txt", "training/calib/000000.txt"):
         assert (out / rel).read_bytes() == (source / rel).read_bytes()

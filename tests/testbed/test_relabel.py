@@ -51,7 +51,7 @@ def source(tmp_path_factory):
 
 def test_relabel_with_the_source_rules_reproduces_the_dataset(source, tmp_path):
     out = tmp_path / "same"
-    _run("relabel", source, "--out", out, "--workers", 1)
+    _run("relabel", "--data", source, "--out", out, "--workers", 1)
     files = _files(source)
     assert len(files) >= 9  # image, depth, instance, label, calib, plane, scan, side file, meta...
     for rel in files:
@@ -67,7 +67,7 @@ def test_relabel_writes_what_generate_writes_under_the_new_rules(source, tmp_pat
     direct = tmp_path / "direct"
     generate(_spec_with_labels(tmp_path, RULES), direct, frames=1)
     out = tmp_path / "relabelled"
-    _run("relabel", source, "--out", out, "--min-lidar-points", 20, "--max-distance", 50,
+    _run("relabel", "--data", source, "--out", out, "--min-lidar-points", 20, "--max-distance", 50,
          "--workers", 1)
     for rel in _files(direct):
         assert (out / rel).read_bytes() == (direct / rel).read_bytes(), rel
@@ -87,35 +87,35 @@ def test_relabel_writes_what_generate_writes_under_the_new_rules(source, tmp_pat
 
 def test_relabel_resumes_and_refuses_another_request_into_its_root(source, tmp_path):
     out = tmp_path / "r"
-    _run("relabel", source, "--out", out, "--max-distance", 40, "--workers", 1)
+    _run("relabel", "--data", source, "--out", out, "--max-distance", 40, "--workers", 1)
     label = out / "training/label_2/000000.txt"
     before = label.stat().st_mtime_ns
-    _run("relabel", source, "--out", out, "--max-distance", 40, "--workers", 1)
+    _run("relabel", "--data", source, "--out", out, "--max-distance", 40, "--workers", 1)
     assert label.stat().st_mtime_ns == before
-    assert "different request" in _fails("relabel", source, "--out", out, "--max-distance", 30)
+    assert "different request" in _fails("relabel", "--data", source, "--out", out, "--max-distance", 30)
 
 
 def test_relabel_names_what_it_cannot_do(source, tmp_path):
     from simgen.generate import generate
 
     assert "--min-visible-share: Input should be less than or equal to 1" in \
-        _fails("relabel", source, "--out", tmp_path / "a", "--min-visible-share", 2)
+        _fails("relabel", "--data", source, "--out", tmp_path / "a", "--min-visible-share", 2)
     assert "--silhouette-sides (item 2)" in \
-        _fails("relabel", source, "--out", tmp_path / "b", "--silhouette-sides", "Pedestrian,Dog")
+        _fails("relabel", "--data", source, "--out", tmp_path / "b", "--silhouette-sides", "Pedestrian,Dog")
     not_generated = tmp_path / "kitti"
     (not_generated / "training" / "meta").mkdir(parents=True)
     assert "simgen.json: no generator manifest" in \
-        _fails("relabel", not_generated, "--out", tmp_path / "c")
+        _fails("relabel", "--data", not_generated, "--out", tmp_path / "c")
     manifest = json.loads((source / "simgen.json").read_text())
     (not_generated / "simgen.json").write_text(json.dumps(manifest))
-    assert "no meta/NNNNNN.json" in _fails("relabel", not_generated, "--out", tmp_path / "c")
+    assert "no meta/NNNNNN.json" in _fails("relabel", "--data", not_generated, "--out", tmp_path / "c")
     manifest["spec"]["labels"]["min_height_px"] = -1.0  # a manifest the rules no longer accept
     (not_generated / "simgen.json").write_text(json.dumps(manifest))
-    assert "simgen.json: key 'spec.labels'" in _fails("relabel", not_generated, "--out", tmp_path / "c")
+    assert "simgen.json: key 'spec.labels'" in _fails("relabel", "--data", not_generated, "--out", tmp_path / "c")
     camera_only = tmp_path / "camera_only"
     generate(load_spec("scenes/urban.yaml").model_copy(update={"lidar": None}), camera_only, frames=1)
     assert "000000.json: the frame has no scan" in \
-        _fails("relabel", camera_only, "--out", tmp_path / "d", "--min-lidar-points", 5)
+        _fails("relabel", "--data", camera_only, "--out", tmp_path / "d", "--min-lidar-points", 5)
 
 
 def test_a_spec_that_counts_lidar_returns_needs_a_lidar(tmp_path):
@@ -132,10 +132,10 @@ def test_relabel_of_a_rescan_counts_the_new_sensors_returns(source, tmp_path):
     """A rescan's meta holds each actor's returns from its own sensor: a point-count rule applied
     to it reads those, so a 16-beam scan leaves more objects below the floor than the 64-beam one."""
     vlp16 = tmp_path / "vlp16"
-    _run("rescan", source, "--out", vlp16, "--lidar", "vlp16", "--workers", 1)
+    _run("rescan", "--data", source, "--out", vlp16, "--lidar", "vlp16", "--workers", 1)
     rules = ("--min-lidar-points", 20, "--workers", 1)
-    _run("relabel", source, "--out", tmp_path / "r64", *rules)
-    _run("relabel", vlp16, "--out", tmp_path / "r16", *rules)
+    _run("relabel", "--data", source, "--out", tmp_path / "r64", *rules)
+    _run("relabel", "--data", vlp16, "--out", tmp_path / "r16", *rules)
     m16 = json.loads((tmp_path / "r16/training/meta/000000.json").read_text())
     m64 = json.loads((tmp_path / "r64/training/meta/000000.json").read_text())
     assert m16["lidar"]["preset"] == "vlp16"

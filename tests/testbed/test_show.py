@@ -41,9 +41,9 @@ def test_show_writes_a_picture(tmp_path):
     pts = np.random.default_rng(0).uniform([0, -20, -1.7, 0], [60, 20, 1, 1], (2000, 4))
     write_velodyne(root / "velodyne" / "000003.bin", pts.astype(np.float32))
     out = tmp_path / "frame.png"
-    res = CliRunner().invoke(cli, ["show", str(tmp_path / "ds"), "--frame", "3", "--out", str(out)])
+    res = CliRunner().invoke(cli, ["show", "--data", str(tmp_path / "ds"), "--frame", "3", "--out", str(out)])
     assert res.exit_code == 0, res.output
     img = iio.imread(out)
     assert img.shape[1] > 2 * img.shape[0] and img.shape[2] in (3, 4)
-    res = CliRunner().invoke(cli, ["show", str(tmp_path / "ds"), "--frame", "4", "--out", str(out)])
+    res = CliRunner().invoke(cli, ["show", "--data", str(tmp_path / "ds"), "--frame", "4", "--out", str(out)])
     assert res.exit_code != 0 and "000004.png" in res.output
