@@ -2,10 +2,10 @@
 large labelled set, each scored by the devkit and on the measured recall (`kitti.eval.ap`,
 `Curve.r40_measured`), against the devkit's figure on the whole set. Made for the real dev
 frames' question: 11 frames holding 14 moderate Cars, where the devkit's AP|R40 cannot exceed
-32.5 and issue 16's target is 40 on a set large enough not to cap it.
+32.5, while a target such as 40 is a figure on a set large enough not to cap it.
 
-    .venv/bin/python benchmarks/ap_few_frames.py --gt data/s57/urban_fresh/training/label_2 \\
-        --split data/s57/urban_fresh/ImageSets/trainval.txt --pred runs/s57/fresh/plain \\
+    .venv/bin/python benchmarks/ap_few_frames.py --gt ROOT/training/label_2 \\
+        --split ROOT/ImageSets/trainval.txt --pred DETECTIONS \\
         [--frames 11] [--sets 300] [--classes Car]
 
 Prints, per class and difficulty, the whole set's devkit figure, then over the drawn sets the

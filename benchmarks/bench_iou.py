@@ -1,4 +1,4 @@
-"""Pairwise 3D IoU of 2,000 x 2,000 boxes (issue: under 1 s on the 2-core CPU).
+"""Pairwise 3D IoU of 2,000 x 2,000 boxes (the budget: under 1 s on a 2-core CPU).
 
 Two sets: a KITTI-like street (boxes spread over 80 m x 80 m, each detection near a truth box, the
 case the evaluation meets) and a worst case in which every pair overlaps (all boxes in 6 m x 6 m).

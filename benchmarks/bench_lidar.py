@@ -8,7 +8,8 @@ per-laser gains and zero shares, scatter, floors and quantisation); the Embree s
 timed apart (it is shared by both and by every sensor of a sweep over beams). Then the
 KITTI-likeness of default hdl64e sweeps: points, range profile, reflectance, and the same under
 fog and rain.
-Usage: .venv/bin/python benchmarks/bench_lidar.py [--frames N] [--repeats R]
+Usage: .venv/bin/python benchmarks/bench_lidar.py [--frames N] [--timing-frames N] [--repeats R]
+    [--spec scenes/urban.yaml]
 """
 
 from __future__ import annotations
@@ -26,7 +27,6 @@ import numpy as np  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
 from simgen.lidar import CLUTTER_ID, build_target, preset, ray_table, scan  # noqa: E402
-from simgen.lidar.scan import _world_dirs, _world_source  # noqa: E402
 from simgen.lidar.windows import windows_of  # noqa: E402
 from simgen.sample import sample_world  # noqa: E402
 from simgen.spec import load_spec  # noqa: E402
@@ -48,20 +48,30 @@ def best_ms(fns, repeats: int) -> list[float]:
     return [b * 1e3 for b in wall + cpu]
 
 
-def _ms(fn) -> float:
+def ms(fn) -> float:
     t = time.perf_counter()
     fn()
     return (time.perf_counter() - t) * 1e3
 
 
+def rotated(a: np.ndarray, rot: np.ndarray) -> np.ndarray:
+    """(N, 3) float32 rows turned by the 3 x 3 `rot`, elementwise as `simgen.lidar.scan` turns
+    the ray table into the world frame."""
+    m = np.asarray(rot, dtype=np.float32)
+    return np.ascontiguousarray(a[:, 0:1] * m[:, 0] + a[:, 1:2] * m[:, 1] + a[:, 2:3] * m[:, 2])
+
+
 def bare_query(world, spec, tgt):
+    """One Embree query of exactly the sweep's rays (the public `ray_table`, turned with the
+    rig), built before the clock starts."""
     rays = ray_table(spec)
-    d = _world_dirs(spec, tuple(world.lidar_pose[:3, :3].ravel().tolist()))
+    rot = world.lidar_pose[:3, :3]
+    d = rotated(rays.dirs32, rot)
     o = np.empty_like(d)
     np.multiply(rays.time32[:, None], np.asarray(world.ego_velocity, np.float32)[None], out=o)
     o += world.lidar_pose[:3, 3].astype(np.float32)
     if rays.source is not None:  # the same rays as the sweep's: each from its laser's source
-        o += _world_source(spec, tuple(world.lidar_pose[:3, :3].ravel().tolist()))
+        o += rotated(rays.source, rot)
     return lambda: tgt.scene.run(o, d, dists=spec.max_range + 1.0, output=1)
 
 
@@ -70,10 +80,11 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=10, help="urban worlds for the statistics")
     ap.add_argument("--timing-frames", type=int, default=3, help="urban worlds for the timings")
     ap.add_argument("--repeats", type=int, default=25)
+    ap.add_argument("--spec", default="scenes/urban.yaml", help="the worlds' scene spec")
     args = ap.parse_args()
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})  # one core
-    spec_u = load_spec("scenes/urban.yaml")
+    spec_u = load_spec(args.spec)
     sensors = {16: preset("uniform", beams=16), 32: preset("uniform", beams=32),
                64: preset("hdl64e"), 128: preset("uniform", beams=128)}
 
@@ -86,7 +97,7 @@ def main() -> None:
             tgt = build_target(world, spec)
             builds.append((time.perf_counter() - t) * 1e3)
             if beams == 64:
-                windows.append(min(_ms(lambda: windows_of(world, tgt.n_triangles)) for _ in range(5)))
+                windows.append(min(ms(lambda: windows_of(world, tgt.n_triangles)) for _ in range(5)))
             bare, full, bare_cpu, full_cpu = best_ms(
                 [bare_query(world, spec, tgt), lambda: scan(world, spec, 0, target=tgt)],
                 args.repeats)

@@ -3,7 +3,7 @@ against the incidence of the beam on the car's surface and against the face of t
 and the nonzero readings' median (a diagnosis of the fidelity report's "share of the points on a
 Car at 0-20 m that read 0").
 
-    .venv/bin/python benchmarks/car_readings.py --sim data/fidelity/urban200_reading \\
+    .venv/bin/python benchmarks/car_readings.py --sim ROOT \\
         --real ../shared/kitti_real_dev [--near 20] [--frames 60] [--map cars.png]
 
 Points on a Car: the returns inside its label box (`kitti.boxes.points_in_boxes`), Cars nearer
@@ -64,7 +64,7 @@ class CarReturns:
     views: list[tuple[str, float, np.ndarray, np.ndarray]]  # (frame, distance, (n, 3) u w h, refl)
 
 
-def _car_frame(rect: np.ndarray, location: np.ndarray, ry: float) -> tuple[np.ndarray, np.ndarray]:
+def car_frame(rect: np.ndarray, location: np.ndarray, ry: float) -> tuple[np.ndarray, np.ndarray]:
     """The car's axes in rect coordinates (length, width, up; rows) and its points in them."""
     axes = np.array([[np.cos(ry), 0.0, -np.sin(ry)], [np.sin(ry), 0.0, np.cos(ry)], [0.0, -1.0, 0.0]])
     return axes, (rect - location) @ axes.T
@@ -87,7 +87,7 @@ def car_returns(root: Path, near: float, frames: int) -> CarReturns:
                 continue
             r = scan[inside, 3]
             c, normal = surface(rect[inside], origin)
-            axes, own = _car_frame(rect[inside], np.asarray(o.location, dtype=np.float64), o.rotation_y)
+            axes, own = car_frame(rect[inside], np.asarray(o.location, dtype=np.float64), o.rotation_y)
             face.append(np.argmax(np.abs(normal @ axes.T), axis=1).choose([1, 0, 2]))
             refl.append(r)
             cos.append(c)
@@ -97,7 +97,7 @@ def car_returns(root: Path, near: float, frames: int) -> CarReturns:
                       np.array(per_car), views)
 
 
-def _cell(v: np.ndarray) -> str:
+def cell(v: np.ndarray) -> str:
     nz = v[v > 0]
     return f"{len(v):,}, {np.mean(v == 0):.2f}, {np.median(nz):.2f}" if len(nz) else f"{len(v):,}"
 
@@ -144,12 +144,12 @@ def main() -> None:
     print("| incidence cos | sim: returns, share read 0, nonzero median | real: the same |")
     print("|---|---|---|")
     for lo, hi in zip(COS_BINS[:-1], COS_BINS[1:]):
-        cells = [_cell(c.refl[(c.cos >= lo) & (c.cos < hi)]) for c in sides.values()]
+        cells = [cell(c.refl[(c.cos >= lo) & (c.cos < hi)]) for c in sides.values()]
         print(f"| {lo:.2f}-{min(hi, 1.0):.2f} | {cells[0]} | {cells[1]} |")
     print("\n| face | sim: returns, share read 0, nonzero median | real: the same |")
     print("|---|---|---|")
     for k, face in enumerate(FACES):
-        cells = [_cell(c.refl[c.face == k]) for c in sides.values()]
+        cells = [cell(c.refl[c.face == k]) for c in sides.values()]
         print(f"| {face} | {cells[0]} | {cells[1]} |")
     print(f"\nReturns within {BOTTOM_M * 100:.0f} cm of their box's bottom face (road returns where a box "
           "stands on the road), and the median Car's share read 0 without them:")

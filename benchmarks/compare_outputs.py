@@ -32,8 +32,8 @@ ROOT = Path(__file__).resolve().parent.parent
 # (name, argv after `testbed`); {W} is the work folder, {S} the golden street of the checkout
 PIPELINE = [
     ("generate", ["generate", "{S}", "--out", "{W}/base", "--frames", "4", "--workers", "2"]),
-    ("rescan", ["rescan", "{W}/base", "--out", "{W}/vlp16", "--lidar", "vlp16", "--workers", "2"]),
-    ("rescan-fog", ["rescan", "{W}/base", "--out", "{W}/fog", "--lidar", "hdl64e", "--beams", "16",
+    ("rescan", ["rescan", "--data", "{W}/base", "--out", "{W}/vlp16", "--lidar", "vlp16", "--workers", "2"]),
+    ("rescan-fog", ["rescan", "--data", "{W}/base", "--out", "{W}/fog", "--lidar", "hdl64e", "--beams", "16",
                     "--fog-extinction", "0.03", "--workers", "1"]),
     ("reduce-beams", ["reduce-beams", "--data", "{W}/base", "--beams", "16", "--out", "{W}/d16"]),
     ("detect", ["detect", "--data", "{W}/base", "--out", "{W}/det", "--split", "all"]),
@@ -51,6 +51,16 @@ PIPELINE = [
 DIGEST = re.compile(r"(base|scans|points|detections)-[0-9a-f]{10}(?:-[0-9a-f]{10})?")
 
 
+def spelled_for(checkout: Path, argv: list[str]) -> list[str]:
+    """argv as `checkout`'s command line spells it: before `testbed rescan --data` its dataset was
+    an argument."""
+    old = 'click.argument("dataset"' in (checkout / "testbed/cmd_rescan.py").read_text()
+    if argv[0] != "rescan" or "--data" not in argv or not old:
+        return argv
+    i = argv.index("--data")
+    return [argv[0], argv[i + 1], *argv[1:i], *argv[i + 2:]]
+
+
 def run_pipeline(checkout: Path, work: Path) -> dict[str, str]:
     """Every stage with `checkout`'s code; returns {relative path: sha256} of what was written,
     plus each stage's printout under 'stdout/<stage>'."""
@@ -62,7 +72,7 @@ def run_pipeline(checkout: Path, work: Path) -> dict[str, str]:
                              checkout / "tests/golden/street.yaml") if p.exists())
     out: dict[str, str] = {}
     for name, argv in PIPELINE:
-        args = [a.replace("{W}", str(work)).replace("{S}", str(scene)) for a in argv]
+        args = [a.replace("{W}", str(work)).replace("{S}", str(scene)) for a in spelled_for(checkout, argv)]
         cmd = [sys.executable, "-c", "from testbed.cli import main; main()", *args]
         print(f"[{checkout.name}] testbed {' '.join(args)}", flush=True)
         res = subprocess.run(cmd, cwd=checkout, env=env, capture_output=True, text=True)

@@ -6,8 +6,8 @@ as found at IoU 0.7 (the official Car match). Labels are binned by box height, s
 loss on a generator's held-out frames can be read against the heights real labels have. Beside it,
 the Car detections at --score that overlap no label of any type at IoU 0.5, per frame.
 
-    .venv/bin/python benchmarks/detector_by_height.py --data data/det45/val \
-        --pred stage18=runs/s46/pred_plain_det45 --pred G=runs/s48/pred_G_det45 [--score 0.3]
+    .venv/bin/python benchmarks/detector_by_height.py --data ROOT [--split FILE] \
+        --pred A=DETECTIONS_A --pred B=DETECTIONS_B [--score 0.3]
 """
 
 from __future__ import annotations

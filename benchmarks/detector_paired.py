@@ -4,9 +4,8 @@ difference to the first run (`kitti.eval.bootstrap`). What a rule such as "Car >
 held-out frames" can and cannot tell apart: on a few hundred frames a car or two moves the AP by
 a few tenths, so a shortfall inside the paired interval is not a measured loss.
 
-    .venv/bin/python benchmarks/detector_paired.py --gt data/s52/urban_val/training/label_2 \\
-        --split data/s52/urban_val/ImageSets/trainval.txt \\
-        --pred stage18=runs/s52/pred_stage18_urban_val --pred W_C=runs/s53/pred_W_C_urban_val [--draws 1000]
+    .venv/bin/python benchmarks/detector_paired.py --gt ROOT/training/label_2 \\
+        --split ROOT/ImageSets/trainval.txt --pred A=DETECTIONS_A --pred B=DETECTIONS_B [--draws 1000]
 """
 
 from __future__ import annotations

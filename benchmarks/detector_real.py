@@ -15,7 +15,7 @@ positives while the ranking of cars against clutter is unchanged.
 
     .venv/bin/python benchmarks/detector_real.py --data ../shared/kitti_real_dev \
         --weights detector/weights/flexinet_small.pt [--weights OTHER.pt ...] --out runs/det_real \
-        [--mirror on|off|both] [--scales 1 --scales 1,1.25] [--blur-sigma 2] [--objects]
+        [--mirror on|off|both] [--scales 1 --scales 1,1.25] [--objects]
 
 `--mirror`: the image read also mirrored (as `testbed detect` does by default), in one pass only,
 or both ways, each weight file's rows side by side. `--scales`: the reads' input scales
@@ -125,16 +125,6 @@ def object_scores(ds: KittiDataset, ids: list[str], pred: dict) -> list[tuple]:
     return sorted(rows, key=lambda r: r[1])
 
 
-def _blur_images(sigma: float) -> None:
-    """Every image this process reads, low-passed: how much the detector's failure on real
-    photographs is their fine detail (a diagnosis, not a method: the blur would be chosen on real
-    frames)."""
-    import cv2
-
-    read = KittiDataset.image
-    KittiDataset.image = lambda self, fid: cv2.GaussianBlur(read(self, fid), (0, 0), sigma)
-
-
 def interval_rows(ds: KittiDataset, ids: list[str], preds: dict[str, dict],
                   drives: dict[str, str] | None = None) -> list[str]:
     """Each run's moderate Car AP with its 95 % interval over draws of the frames (a drive's frames
@@ -164,8 +154,6 @@ def main() -> None:
     ap.add_argument("--split", default=None, help="ImageSets name (default: every frame)")
     ap.add_argument("--weights", action="append", required=True)
     ap.add_argument("--out", required=True, type=Path)
-    ap.add_argument("--blur-sigma", type=float, default=0.0,
-                    help="diagnosis: Gaussian-blur every image by this many pixels first")
     ap.add_argument("--mirror", choices=["on", "off", "both"], default="on",
                     help="read each image also mirrored (on, the default of `testbed detect`), not, or both")
     ap.add_argument("--scales", action="append",
@@ -177,8 +165,6 @@ def main() -> None:
     ap.add_argument("--drives", type=Path, help="which frames share a drive (`kitti.read_drives`): "
                                                 "the intervals' draws take whole drives")
     args = ap.parse_args()
-    if args.blur_sigma > 0:
-        _blur_images(args.blur_sigma)
     ds = KittiDataset(args.data)
     ids = ds.ids(args.split)
     print(f"{args.data}: {len(ids)} frames")

@@ -2,8 +2,8 @@
 BatchNorm statistics) averaged over weight files fine-tuned from one starting file.
 
 Averaging the weights of fine-tunes that share their start (Wortsman et al. 2022, "Model soups")
-often reads shifted data better than any one of them; here it is a try at the real frames, decided
-like any other weight file on generated frames (`results/detector.md`, stop 40).
+often reads shifted data better than any one of them. The shipped detector weights are such an
+average of two files (`detector/weights/README.md`).
 
     .venv/bin/python benchmarks/detector_soup.py --out runs/soup.pt \
         detector/weights/flexinet_small.pt runs/a/weights.pt runs/b/weights.pt ...

@@ -1,8 +1,8 @@
 """Speed of `testbed fidelity`: the statistics pass (frames per second on a generated root and on
 real KITTI) and the bootstrap behind the verdicts' intervals, and what 1,000 frames against 1,000
-would take on this machine (the bootstrap timed on each root's frames repeated to 1,000).
+would take on the machine it runs on (the bootstrap timed on each root's frames repeated to 1,000).
 
-    .venv/bin/python benchmarks/bench_fidelity.py --sim data/fidelity/urban200 \
+    .venv/bin/python benchmarks/fidelity_speed.py --sim SIM \
         --real ../shared/kitti_real_dev --workers 2
 
 Each root is read twice and the second pass is timed (the first warms numba and the file cache).

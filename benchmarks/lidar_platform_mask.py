@@ -9,7 +9,7 @@ the mount are the same in every KITTI frame, so the sectors are a property of th
 the scenes: a sector counts where at least --share of the frames have no return of that laser in
 it. Lasers are recovered as the fidelity report does (`kitti.rings.recover_rings`).
 
-Usage: .venv/bin/python benchmarks/lidar_platform_mask.py [--root ../shared/kitti_real_dev]
+Usage: .venv/bin/python benchmarks/lidar_platform_mask.py --root REAL
     [--bin-deg 1] [--share 0.9]
 Prints the laser-by-laser table (ring, azimuth sectors in degrees of atan2(y, x), 0-360) in the
 form `simgen/lidar/platform.py` holds it, and per laser the returns a frame (median).
@@ -42,7 +42,7 @@ def empty_sectors(covered: np.ndarray, frames: int, share: float, bin_deg: float
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--root", default="../shared/kitti_real_dev")
+    ap.add_argument("--root", required=True, help="a real KITTI root (training/velodyne)")
     ap.add_argument("--bin-deg", type=float, default=1.0)
     ap.add_argument("--share", type=float, default=0.9)
     args = ap.parse_args()

@@ -7,7 +7,7 @@ the runs between azimuth wraps are the lasers (64 runs plus the first laser's ta
 Road points: within 0.1 m of the RANSAC road plane (`lifter.ground`), which also gives the
 incidence (cos = |plane normal . ray|).
 
-Usage: .venv/bin/python benchmarks/lidar_reflectance_stats.py [--root ../shared/kitti_real_dev]
+Usage: .venv/bin/python benchmarks/lidar_reflectance_stats.py --root REAL
 
 Section 7 fits the reading's compensation range (LidarSpec.compensation_range) to the road's far
 readings through the preset's own reading model.
@@ -31,7 +31,7 @@ SHAPE_P = (0.001, 0.005, 0.01, 0.05, 0.1, 0.25, 0.5, 0.75, 0.9, 0.95, 0.99, 0.99
 DARK_RANGE, GAMMA = 50.0, np.log(0.8 / 0.1) / np.log(120.0 / 50.0)  # hdl64e power law
 
 
-def _robust_sd(x: np.ndarray) -> float:
+def robust_sd(x: np.ndarray) -> float:
     return float(1.4826 * np.median(np.abs(x - np.median(x))))
 
 
@@ -56,7 +56,7 @@ def load(root: Path) -> list[dict]:
 
 def main() -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("--root", default=str(Path(__file__).resolve().parents[2] / "shared" / "kitti_real_dev"))
+    ap.add_argument("--root", required=True, help="a real KITTI root (training/velodyne, calib)")
     args = ap.parse_args()
     frames = load(Path(args.root))
     cat = {k: np.concatenate([f[k] for f in frames]) for k in frames[0]}
@@ -131,14 +131,14 @@ def per_laser(frames: list[dict]) -> None:
             els[fi, k] = np.median(f["el"][f["laser"] == k])
             if m.sum() >= 50:
                 meds[fi, k] = np.median(f["v"][m])
-                spreads.append(_robust_sd(np.log(f["v"][m])))
+                spreads.append(robust_sd(np.log(f["v"][m])))
                 # spread evenly over its 0.01 step, so the quantiles do not step with KITTI's
                 v = f["v"][m].astype(np.float64) + jitter.uniform(-0.005, 0.005, m.sum())
                 devs.append(np.log(v) - np.median(np.log(v)))
     lm = np.nanmedian(meds, axis=0)
     lm = np.log(lm[np.isfinite(lm)] / np.median(lm[np.isfinite(lm)]))
     print(f"   {len(lm)} lasers see enough road: sd of log(laser median / all-laser median) = "
-          f"{lm.std():.3f} (robust {_robust_sd(lm):.3f}); range x{np.exp(lm.min()):.2f} to "
+          f"{lm.std():.3f} (robust {robust_sd(lm):.3f}); range x{np.exp(lm.min()):.2f} to "
           f"x{np.exp(lm.max()):.2f}")
     lo, mid, hi = np.percentile(lm, [15.87, 50, 84.13])
     print(f"   one-sided spreads of the lasers' log medians (50th less 16th, 84th less 50th percentile): "
@@ -147,7 +147,7 @@ def per_laser(frames: list[dict]) -> None:
           f"(quartiles {np.percentile(spreads, 25):.3f}, {np.percentile(spreads, 75):.3f}; "
           f"{len(spreads)} laser-frames)")
     dev = np.concatenate(devs)
-    sd = _robust_sd(dev)
+    sd = robust_sd(dev)
     print(f"   pooled deviations of log(reading) from their laser-frame's median ({len(dev)} returns; "
           f"readings spread over their 0.01 step): robust sd {sd:.3f}; in units of it, quantiles at "
           + ", ".join(f"{p:g}" for p in SHAPE_P) + " (the model's scatter is symmetric in log):")
@@ -160,10 +160,18 @@ def per_laser(frames: list[dict]) -> None:
     rel = np.array([c[i] / np.median(c[max(0, i - 2):i + 3]) for i in range(64)])
     low = (e < -10) & (e > -20)
     print(f"   {low.sum()} lasers: count / median of its 5 elevation neighbours: sd {rel[low].std():.4f}, "
-          f"robust {_robust_sd(rel[low]):.4f}, range {rel[low].min():.3f}-{rel[low].max():.3f}")
+          f"robust {robust_sd(rel[low]):.4f}, range {rel[low].min():.3f}-{rel[low].max():.3f}")
 
 
-def _model_readings(d: np.ndarray, rho: float, d0: float, same_draw: bool, seed: int = 0,
+def scatter_quantiles(sigma: float, n: int = 4096) -> np.ndarray:
+    """The reading's scatter factor as `simgen.lidar.scan` tabulates it: log-logistic whose log
+    has robust sd `sigma`, (v / (1 - v)) ** (sigma / (1.4826 ln 3)) at the centres of n equal
+    steps of a uniform v."""
+    v = (np.arange(n) + 0.5) / n
+    return ((v / (1.0 - v)) ** (sigma / (1.4826 * np.log(3.0)))).astype(np.float32)
+
+
+def model_readings(d: np.ndarray, rho: float, d0: float, same_draw: bool, seed: int = 0,
                     draws: int = 20) -> np.ndarray:
     """The hdl64e preset's reading model (simgen.lidar.scan) at ranges `d` on a surface whose
     compensated reading has median `rho`: per-laser gain and reading scatter as the preset draws
@@ -171,12 +179,11 @@ def _model_readings(d: np.ndarray, rho: float, d0: float, same_draw: bool, seed:
     own scatter draw (`same_draw`) or on a draw of its own; dimmed beyond `d0`; 0 below refl_floor.
     Zero-share readings are left out (they do not move the nonzero median)."""
     from simgen.lidar import preset
-    from simgen.lidar.scan import _scatter_quantiles
 
     spec = preset("hdl64e")
     rng = np.random.default_rng(seed)
     d = np.repeat(d, draws)
-    q = _scatter_quantiles(spec.reading_sigma)
+    q = scatter_quantiles(spec.reading_sigma)
     gain = np.exp(rng.normal(0.0, spec.gain_sigma, len(d)))
     e2 = q[rng.integers(0, len(q), len(d))]
     e1 = e2 if same_draw else q[rng.integers(0, len(q), len(d))]
@@ -197,7 +204,7 @@ def far_readings(v: np.ndarray, r: np.ndarray, road: np.ndarray) -> None:
     near = road & (r >= 4) & (r < 20)
     ref = float(np.median(v[near & (v > 0)]))
     # the surface whose model readings at 4-20 m have KITTI's nonzero median there
-    unit = _model_readings(r[near][::50], 1.0, 1e9, False)
+    unit = model_readings(r[near][::50], 1.0, 1e9, False)
     rho = ref / float(np.median(unit[unit > 0]))
     far = []  # per bin: the road returns' ranges, KITTI's nonzero median, the nonzero count
     for lo, hi in bins[1:]:
@@ -208,7 +215,7 @@ def far_readings(v: np.ndarray, r: np.ndarray, road: np.ndarray) -> None:
     def medians(d0: float, same_draw: bool) -> list[float]:
         out = []
         for d, _, _ in far:
-            s = _model_readings(d, rho, d0, same_draw)
+            s = model_readings(d, rho, d0, same_draw)
             out.append(float(np.median(s[s > 0])) if np.any(s > 0) else np.nan)
         return out
 

@@ -2,7 +2,7 @@
 lifting method on datasets that differ only in the LiDAR (e.g. 64/32/16 beams of the same worlds),
 from oracle 2D boxes (the labels) or from detection files.
 
-    .venv/bin/python benchmarks/bench_lifter_ap.py --split val --boxes gt \
+    .venv/bin/python benchmarks/lifter_ap.py --split val --boxes gt \
         --dataset 64=data/urban_val_hdl64 --dataset 32=data/urban_val_b32 \
         --dataset 16=data/urban_val_b16 --out runs/lifter/ap_gt
 
@@ -22,7 +22,7 @@ from lifter.methods import METHODS
 from lifter.pipeline import lift_dataset
 
 
-def _fmt(v) -> str:
+def fmt(v) -> str:
     return " / ".join(f"{x:5.1f}" for x in v)
 
 
@@ -64,7 +64,7 @@ def main() -> None:
             rows.append((label, method, *vals))
     lines = ["| LiDAR | method | Car 3D AP R40 @0.7 (E / M / H) | 3D @0.5 (E / M / H) | BEV @0.7 (E / M / H) |",
              "|---|---|---|---|---|"]
-    lines += [f"| {lab} | {m} | {_fmt(a)} | {_fmt(b)} | {_fmt(c)} |" for lab, m, a, b, c in rows]
+    lines += [f"| {lab} | {m} | {fmt(a)} | {fmt(b)} | {fmt(c)} |" for lab, m, a, b, c in rows]
     table = "\n".join(lines) + "\n"
     print(table)
     atomic_write_text(out / "table.md", table)

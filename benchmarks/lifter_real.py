@@ -2,7 +2,7 @@
 Car AP|R40 (3D @0.7 and @0.5, moderate) and, per labelled Car/Van, the errors of its lifted box
 (oracle 2D boxes, so each lifted box belongs to the label with the same 2D box).
 
-    .venv/bin/python benchmarks/bench_lifter_real.py --data ../shared/kitti_real_dev \
+    .venv/bin/python benchmarks/lifter_real.py --data ../shared/kitti_real_dev \
         --out runs/lifter/real [--methods fit,mono,frustum] [--priors net,truth] [--objects] \
         [--drives results/fidelity/kitti_real_dev_drives.txt]
 
@@ -88,7 +88,7 @@ def per_object(data: Path, pred_dir: Path, ids: list[str], roads: dict[str, Loca
     return rows
 
 
-def _table(rows: list[dict]) -> str:
+def markdown_table(rows: list[dict]) -> str:
     head = ("| frame | type | tr | occ | depth | along | across | dy | yaw deg | dh | dw | dl | IoU | road_err |\n"
             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     lines = [head]
@@ -139,7 +139,7 @@ def main() -> None:
                             sum(x["iou3d"] >= 0.7 for x in mod), sum(x["iou3d"] >= 0.5 for x in mod),
                             len(mod)))
             if args.objects:
-                print(f"\n### {method}, {priors} priors\n\n{_table(rows)}")
+                print(f"\n### {method}, {priors} priors\n\n{markdown_table(rows)}")
     print("\n| method | priors | Car 3D AP R40 mod @0.7 (% of cap) | @0.5 (% of cap) | on the measured "
           "recall @0.7 / @0.5 | moderate cars IoU>=0.7 / >=0.5 | all cars: median abs along / across "
           "/ dy (m) | yaw (deg) | dl (m) |\n|---|---|---|---|---|---|---|---|---|")

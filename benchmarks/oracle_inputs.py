@@ -4,7 +4,7 @@ side moved by Gaussian noise of `sigma` pixels, as a human annotator's or a dete
 be; and with the dataset's exact road plane (planes/) or without it (the road fitted to the scan,
 as on KITTI's frames).
 
-    .venv/bin/python benchmarks/oracle_inputs.py --data data/lifter/urban_val --split trainval \\
+    .venv/bin/python benchmarks/oracle_inputs.py --data ROOT --split trainval \\
         --methods mono,fit --sigmas 0,0.6,1,2 --roads planes,scan --out runs/oracle_inputs
 
 A generated label's 2D box is its 3D box's projection to a thousandth of a pixel; KITTI's lie

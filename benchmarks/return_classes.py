@@ -4,7 +4,6 @@ that does not come from the eleven dev frames), and the mean reflectance each cl
 read (SemanticKITTI publishes no per-class reading: a diagnosis of what moves the scan's mean).
 
     .venv/bin/python benchmarks/return_classes.py [--spec scenes/urban.yaml] [--frames 24] [--seed 0]
-        [--front-boundaries hedge,hedge,hedge,none]
 
 SemanticKITTI (Behley et al., ICCV 2019) labelled every point of the KITTI odometry sequences
 00-10: 23,201 scans of the same HDL-64E on the same car, driven through Karlsruhe's residential
@@ -19,17 +18,12 @@ The last line splits the vehicle returns by whether the vehicle moves (`simgen.w
 against SemanticKITTI's own standing and "moving-" classes.
 
 Returns on an actor are counted by its class (`simgen.world.Actor.cls`); every other return by
-the material of the surface its ray meets (`far_returns.materials_hit`, which names a return
+the material of the surface its ray meets (`materials_hit` below, which names a return
 behind a facade's glass "window"). Kerbs and the low walls of plot boundaries share one concrete
 material: a return on it standing more than WALL_ABOVE over the kerb's top (the road's surface
 under it plus the curb height) is a wall's and counts as fence, the rest as sidewalk (kerbs).
 (SemanticKITTI's class definitions were not at hand to say whether its annotators put such walls
 in fence or in other-structure, which is folded into "other" here.)
-
-`--front-boundaries` draws the front-yard boundaries of detached houses from the given list,
-each entry equally often, in place of `simgen.scenery.BOUNDARIES` (hedge, fence, wall, none;
-the side and rear boundaries from all but the last entry, as the generator does), in this
-process only: a diagnosis of what a mix no survey gives would do; no spec sets it.
 """
 
 from __future__ import annotations
@@ -38,10 +32,8 @@ import argparse
 import collections
 
 import numpy as np
-from far_returns import materials_hit
 from tqdm import tqdm
 
-import simgen.scenery
 from simgen import lidar
 from simgen.road import RoadLayout
 from simgen.sample import sample_world
@@ -95,6 +87,26 @@ BY_MATERIAL = {
 }
 
 
+def materials_hit(world, spec: lidar.LidarSpec, scan: lidar.LidarScan, tgt: lidar.Target) -> np.ndarray:
+    """Material name of the surface behind each return, 'none' where no triangle; 'window' where
+    the ray meets a façade that can hold windows and the return lies more than 10 cm beyond it (a
+    curtain or a room behind the glass: simgen.lidar.windows). Each return's ray is cast again
+    from the sensor's origin at its firing time into the scan's own scene (`tgt`); the lasers'
+    few-centimetre offsets from that origin are ignored."""
+    poses = world.lidar_pose_at(scan.time.astype(np.float64))  # the sensor at each firing
+    origin = poses[:, :3, 3]
+    d = np.einsum("nij,nj->ni", poses[:, :3, :3], scan.points[:, :3].astype(np.float64))
+    r = np.linalg.norm(d, axis=1)
+    d /= r[:, None]
+    res = tgt.scene.run(origin.astype(np.float32), d.astype(np.float32), output=1)
+    prim = res["primID"]
+    names = np.array([m.name for m in tgt.materials] + ["none", "window"])
+    index = np.where(prim >= 0, tgt.tri_mat[np.maximum(prim, 0)], len(tgt.materials))
+    behind = (prim >= 0) & (tgt.windows.tri_wall[np.maximum(prim, 0)] >= 0) & (r > res["tfar"] + 0.1)
+    index[behind] = len(tgt.materials) + 1
+    return names[index]
+
+
 WALL_ABOVE = 0.05  # m over the kerb's top: kerb faces end there, walls stand 0.5-1.2 m above it
 
 
@@ -121,15 +133,7 @@ def main() -> None:
     ap.add_argument("--spec", default="scenes/urban.yaml")
     ap.add_argument("--frames", type=int, default=24)
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--front-boundaries", help="comma-separated kinds (hedge, fence, wall, none)")
     args = ap.parse_args()
-    if args.front_boundaries:
-        kinds = tuple(args.front_boundaries.split(","))
-        unknown = set(kinds) - set(simgen.scenery.BOUNDARIES)
-        if unknown:
-            ap.error(f"--front-boundaries: unknown kinds {sorted(unknown)} "
-                     f"(known: {', '.join(simgen.scenery.BOUNDARIES)})")
-        simgen.scenery.BOUNDARIES = kinds
     spec = load_spec(args.spec)
     sensor = lidar.preset(spec.lidar.preset, beams=spec.lidar.beams, max_range=spec.lidar.max_range)
     counts, reading, n = collections.Counter(), collections.Counter(), 0
@@ -147,8 +151,7 @@ def main() -> None:
         for state in ("moving", "standing"):
             ids = [a.id for a in vehicles if a.moving == (state == "moving")]
             vehicle_returns[state] += int(np.isin(swept.actor_id, ids).sum())
-    print(f"{args.spec}, {args.frames} frames (seed {args.seed}), {n / args.frames:,.0f} returns a frame"
-          + (f", front boundaries drawn from {args.front_boundaries}" if args.front_boundaries else ""))
+    print(f"{args.spec}, {args.frames} frames (seed {args.seed}), {n / args.frames:,.0f} returns a frame")
     print("| class | generated (%) | SemanticKITTI, sequences 00-10 (%) | ratio | generated: mean reflectance |"
           "\n|---|---:|---:|---:|---:|")
     mean = (lambda name: reading[name] / counts[name] if counts[name] else float("nan"))

@@ -53,7 +53,7 @@ contrast, gamma, greyscale) -> compression (JPEG). No op changes geometry: boxes
   `randconv_keep_below` (KITTI pixels; 0, off, by default): boxes lower than it keep their own
   pixels (widened by a quarter each side, edges feathered), and so do two same-sized decoy patches
   a box at random places, so an unconvolved patch does not mark a small object. Every RandConv run
-  lost the generator's 25-40 px Cars (stops 46-53, `results/detector.md`): a random 5 or 7 px
+  lost the generator's 25-40 px Cars (`results/detector.md`): a random 5 or 7 px
   kernel scrambles an object a few dozen pixels tall, where a near car keeps its shape.
   The paper's full method also trains on pairs: `Augmenter.pair` gives one sample without and with
   a random convolution, every other draw shared, for the consistency term that

@@ -51,7 +51,7 @@ def lidar_upright_corners(boxes7: np.ndarray, calib: Calibration) -> np.ndarray:
     between the two frames (about 0.6 deg of pitch and of roll in KITTI's calibration). So a
     label's 2D box is the projection of these corners, not of `box_corners`: on the real dev
     frames the sides of the vehicles' boxes lie a median 0.2 px from the one and 0.6 px from the
-    other (`benchmarks/box_sides.py`)."""
+    other."""
     b = np.asarray(boxes7, dtype=float).reshape(-1, 7)
     bottom = calib.rect_to_lidar(b[:, :3])
     ahead = calib.rect_to_lidar(b[:, :3] + np.stack([np.cos(b[:, 6]), np.zeros(len(b)), -np.sin(b[:, 6])], 1))

@@ -61,10 +61,10 @@ GAMMA = 2.2  # the renderer's encoding of radiance (simgen.render), undone befor
 # set's figures are the defaults: the key 0.175 here and the output gamma 1.4
 # (`CameraResponse.gamma`; `benchmarks/tone_curve.py --frames 120 --gammas 1.2 1.4`, 120 frames of
 # scenes/urban.yaml: mean 95.3 and SD 79.9 at 0.17, 98.0 and 80.8 at 0.18, against 96.2 and 80.0;
-# at gamma 1.2 no key gives both, SD 84.3 at a mean of 94.0; results/simgen.md, stop 51). They
-# were 0.24 and 1.2 while crowns and hedges wore a single leaf's colour (simgen.materials.
-# canopy_reflectance): the darker canopies lower the frames' log average, so the same key lifted
-# everything else. The 11 real dev frames, a diagnosis only, have a pooled SD of 80.
+# at gamma 1.2 no key gives both, SD 84.3 at a mean of 94.0; results/simgen.md). The canopies'
+# colour (simgen.materials.canopy_reflectance) moves the fit: darker crowns and hedges lower the
+# frames' log average, and with them in a single leaf's colour the same fit gives a key of 0.24 at
+# gamma 1.2. The 11 real dev frames, a diagnosis only, have a pooled SD of 80.
 KEY = 0.175
 # The colour filters of a Bayer CCD overlap: each passes part of the light the other two peak on
 # (the relative spectral responses in Sony's ICX-series data sheets: roughly 10-20 % off-band), so

@@ -15,7 +15,7 @@ Per actor:
   `silhouette_bbox`. For the classes in `silhouette_sides` (default Pedestrian) the left and right
   sides are the silhouette's, as KITTI's devkit says its pedestrians' were labelled again in the
   image (width over the projection's, median: 0.81 on the real dev frames' three, 0.82 on 200
-  frames of `scenes/urban.yaml`; `benchmarks/box_sides.py`);
+  frames of `scenes/urban.yaml`);
 - truncation: the share of the silhouette's area outside the image (the mesh, not the box); an
   object reaching behind the camera plane projects without bound, so its truncation is ~1;
 - visible share: the actor's instance-mask pixels over the area of its silhouette inside the

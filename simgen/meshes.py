@@ -99,7 +99,7 @@ _STYLES = {
 # it stands at the plane's height. Before, the underside was flat at sill height (0.14-0.23 m) from
 # bumper to bumper, with the rear bumper 3 cm above it. The real car ahead in the dev frames'
 # traffic jam (001206, 001497, 001966, 004587) returns no LiDAR point between 0.05 and 0.25 m on
-# its rear face; the generated cars ahead did, down to 0.17 m (`benchmarks/car_rear.py`). Makers
+# its rear face; the generated cars ahead did, down to 0.17 m. Makers
 # rarely publish the angle for cars; EU type approval asks of an off-road M1 vehicle (M1G),
 # among five of six criteria, a departure angle of at least 20 deg (87/403/EEC, carried into
 # 2007/46/EC Annex II), so cars stay below it: 14-20 deg, and 18-24 deg for SUVs and MPVs, which

@@ -86,7 +86,7 @@ def test_the_shipped_weights_are_read_at_their_judged_scales(tmp_path):
     copy.write_bytes(DEFAULT_WEIGHTS.read_bytes())
     assert Detector.load(copy).scales == (1.0,)
     assert Detector.load(copy, scales=DEFAULT_SCALES).views == 6
-    assert not Detector.load().fuse_boxes  # judged at stop 57, not adopted
+    assert not Detector.load().fuse_boxes  # judged on generated frames, not adopted
 
 
 def test_fused_boxes_move_only_the_sides(street):

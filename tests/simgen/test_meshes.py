@@ -200,7 +200,7 @@ def test_the_rear_floor_rises_to_the_departure_plane_and_shows_the_tyres():
     plane tangent to the rear tyres at the drawn departure angle (DEPARTURE_DEG): no part but the
     wheels reaches below the plane, the rear valance's lower edge stands 3 cm above the floor's
     end, a LiDAR at KITTI's 1.73 m, 8 m behind the car, finds nothing on the car's last 0.25 m
-    below that (what benchmarks/car_rear.py reads in real scans), and a camera at 1.65 m sees both
+    below that (as the real dev frames' scans show), and a camera at 1.65 m sees both
     rear tyres' contact with the road (where the plane rises above the sill)."""
     from simgen.meshes import DEPARTURE_DEG
 
