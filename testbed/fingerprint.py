@@ -107,7 +107,7 @@ def main() -> None:
         MANIFEST.write_text(format_manifest(hashes))
         print(f"wrote {MANIFEST} ({len(hashes)} files)")
     elif diff := check_manifest(args.workers, args.threads, args.keep):
-        sys.exit(f"this machine's outputs differ from {MANIFEST}: first {diff}")
+        sys.exit(f"the outputs here differ from {MANIFEST}: first {diff}")
     else:
         print(f"every file matches {MANIFEST}")
 

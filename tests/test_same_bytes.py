@@ -49,7 +49,7 @@ def _chain(root: Path, workers: int, threads: int, extra: dict[str, str]) -> dic
 def test_the_small_scene_gives_the_committed_bytes_under_every_setting(tmp_path):
     expected = read_manifest(MANIFEST)
     plain = _chain(tmp_path / "plain", 1, 1, {})
-    assert first_difference(plain, expected) is None, f"this machine differs from {MANIFEST}"
+    assert first_difference(plain, expected) is None, f"the outputs here differ from {MANIFEST}"
     other = _chain(tmp_path / "other", 2, 2, ELSEWHERE)
     assert first_difference(other, expected) is None, "2 workers, 2 threads, other kernels asked for"
 
