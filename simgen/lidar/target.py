@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 from embreex.rtcore_scene import EmbreeScene
 
-from ..shadows import embree_scene
+from ..embree import embree_scene
 from ..world import World
 from .kernels import inverse_doubled_areas
 from .rays import sweep_time_of_azimuth

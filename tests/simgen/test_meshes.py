@@ -175,7 +175,7 @@ def test_the_rear_window_has_body_coloured_pillars_on_its_plane():
 def _seen(parts, origins: np.ndarray, dirs: np.ndarray) -> np.ndarray:
     """The material name each ray meets first ("" for none)."""
     from simgen.facets import shared
-    from simgen.shadows import embree_scene
+    from simgen.embree import embree_scene
 
     names = np.repeat([p.material.name for p in parts] + [""], [len(p.mesh.faces) for p in parts] + [1])
     return names[embree_scene(*shared(parts)).run(origins.astype(np.float32), dirs.astype(np.float32))]
@@ -189,7 +189,7 @@ def _seen_along_x(parts, origins: np.ndarray, sgn: float) -> np.ndarray:
 def _first_hits(parts, origins: np.ndarray, dirs: np.ndarray) -> np.ndarray:
     """(N, 3) the point each ray meets first (NaN for none), at Embree's own hit distance."""
     from simgen.facets import shared
-    from simgen.shadows import embree_scene
+    from simgen.embree import embree_scene
 
     res = embree_scene(*shared(parts)).run(origins.astype(np.float32), dirs.astype(np.float32), output=1)
     return np.where((res["primID"] >= 0)[:, None], origins + res["tfar"][:, None] * dirs, np.nan)

@@ -7,9 +7,10 @@ import pytest
 import trimesh
 
 from simgen import facets
+from simgen.embree import EMBREE_CONFIG, embree_scene
 from simgen.materials import ASPHALT, FOLIAGE
 from simgen.meshes import box
-from simgen.shadows import (EMBREE_CONFIG, SKY_RAYS, SKY_STEP, SOFTEN, STEP, Occluders, Reach, embree_scene,
+from simgen.shadows import (SKY_RAYS, SKY_STEP, SOFTEN, STEP, Occluders, Reach,
                             sky_directions, sky_occlusion, sun_shadow)
 from simgen.world import Material, Part
 
