@@ -16,8 +16,8 @@ import time
 import numpy as np
 
 from testbed.backends import LocalBackend
-from testbed.fidelity import DatasetStats, compare, compute_stats
-from testbed.fidelity.bootstrap import DRAWS
+from fidelity import DatasetStats, compare, compute_stats
+from fidelity.bootstrap import DRAWS
 
 
 def rate(root: str, frames: int | None, backend: LocalBackend) -> tuple[DatasetStats, float]:

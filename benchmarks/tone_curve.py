@@ -30,7 +30,7 @@ from simgen.look import rendered_radiance
 from simgen.render import render
 from simgen.sample import sample_world
 from simgen.spec import load_spec
-from testbed.fidelity.images import KITTI_TRAINING_PIXEL_MEAN, KITTI_TRAINING_PIXEL_SD
+from fidelity.images import KITTI_TRAINING_PIXEL_MEAN, KITTI_TRAINING_PIXEL_SD
 
 KITTI_MEAN = np.array(KITTI_TRAINING_PIXEL_MEAN)
 KITTI_SD = np.array(KITTI_TRAINING_PIXEL_SD)

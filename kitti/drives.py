@@ -2,7 +2,7 @@
 
 Frames of one drive are not independent samples: KITTI's object set holds several frames of many
 drives, seconds apart, with the same cars in them, so a bootstrap over frames treats one street as
-several (`testbed.fidelity.bootstrap` resamples drives instead where it knows them). Two sources:
+several (`fidelity.bootstrap` resamples drives instead where it knows them). Two sources:
 
 - a text file, one frame a line: `FRAME_ID DRIVE` (whitespace between; `#` starts a comment);
 - the KITTI object devkit's `mapping/` folder: `train_rand.txt` (one line, comma-separated: the
@@ -10,7 +10,7 @@ several (`testbed.fidelity.bootstrap` resamples drives instead where it knows th
   `train_mapping.txt` (one raw frame a line: `DATE DRIVE RAW_FRAME`).
 
 A frame that neither names is a drive of its own. `drive_units` and `draw_units` are the draws
-both bootstraps make of them (`kitti.eval.bootstrap`, `testbed.fidelity.bootstrap`)."""
+both bootstraps make of them (`kitti.eval.bootstrap`, `fidelity.bootstrap`)."""
 
 from __future__ import annotations
 

@@ -18,7 +18,7 @@ from .options import DATASET, data_option, split_name, split_option, workers_opt
 @split_option(help="Frames of ImageSets/NAME.txt of both roots; 'all' for every frame with an image.")
 @click.option("--frames", type=click.IntRange(min=1), help="Only the first N ids of the split.")
 @click.option("--tolerances", "tolerances", type=click.Path(exists=True, dir_okay=False, path_type=Path),
-              help="Tolerance YAML [default: testbed/fidelity/tolerances.yaml].")
+              help="Tolerance YAML [default: fidelity/tolerances.yaml].")
 @workers_option()
 @click.option("--draws", type=click.IntRange(min=0), default=1000, show_default=True,
               help="Bootstrap draws of both sides' frames behind each verdict's 95 % interval (0: none).")
@@ -41,7 +41,7 @@ def fidelity(data: Path, real: Path, out: Path, split: str, frames: int | None,
     from kitti.errors import KittiFormatError
 
     from .backends import LocalBackend
-    from .fidelity import UnreadableFrame, compare, compute_stats, load_tolerances, write_report
+    from fidelity import UnreadableFrame, compare, compute_stats, load_tolerances, write_report
 
     unreadable = "skip" if skip_unreadable else "raise"
     try:

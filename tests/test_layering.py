@@ -14,9 +14,10 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("kitti", "simgen", "detector", "lifter", "testbed")
+PACKAGES = ("kitti", "simgen", "detector", "lifter", "fidelity", "testbed")
 MAY_IMPORT = {"kitti": {"kitti"}, "simgen": {"kitti", "simgen"}, "detector": {"kitti", "detector"},
-              "lifter": {"kitti", "lifter"}, "testbed": set(PACKAGES)}
+              "lifter": {"kitti", "lifter"}, "fidelity": {"kitti", "lifter", "fidelity"},
+              "testbed": set(PACKAGES)}
 HEAVY = ("torch", "trimesh", "embreex", "pyrender", "numba")
 REAL_KITTI = ROOT.parent / "shared" / "kitti_real_dev"
 

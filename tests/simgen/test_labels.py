@@ -17,7 +17,7 @@ from simgen.render import render
 from simgen.rigs import onboard_rig
 from simgen.spec import LabelRules
 from simgen.world import Actor, Light, Weather, World
-from testbed.fidelity.labels import box_projections
+from fidelity.labels import box_projections
 
 CAR = {"kind": "car", "dims": [1.53, 1.63, 3.88], "color": [0.55, 0.04, 0.03], "seed": 7}
 

@@ -20,11 +20,11 @@ from lifter.ground import fit_ground_plane, height_above
 from simgen.generate import generate
 from simgen.spec import load_spec
 from testbed.cmd_fidelity import fidelity
-from testbed.fidelity import ToleranceError, Tolerances, compare, compute_stats, load_tolerances, write_report
-from testbed.fidelity.catalog import STAT_KEYS
-from testbed.fidelity.images import car_look_stats
-from testbed.fidelity.stats import Acc
-from testbed.fidelity.compare import verdict
+from fidelity import ToleranceError, Tolerances, compare, compute_stats, load_tolerances, write_report
+from fidelity.catalog import STAT_KEYS
+from fidelity.images import car_look_stats
+from fidelity.stats import Acc
+from fidelity.compare import verdict
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -273,8 +273,8 @@ def test_the_command_draws_the_real_frames_by_drive(real_root, tmp_path):
 
 def test_points_on_cars_by_distance_and_on_the_fully_visible_ones():
     """Medians by hand: the visible statistic keeps the occlusion-0 Cars of its distance bin."""
-    from testbed.fidelity.catalog import car_points
-    from testbed.fidelity.stats import DatasetStats
+    from fidelity.catalog import car_points
+    from fidelity.stats import DatasetStats
 
     d = DatasetStats("x", None, ["0"], [], {"lidar": True, "labels": True}, {
         "lidar.car_points": np.array([500.0, 120.0, 30.0, 100.0, 9.0, 2.0, 40.0]),
@@ -289,7 +289,7 @@ def test_points_on_each_car_and_their_zero_readings_by_hand(real_root):
     """Frame 001206's Cars: the returns inside each label box, found here with the box's own
     frame written out (x along its length, z across, y down to its bottom face), and how many of
     them read 0."""
-    from testbed.fidelity.lidar import lidar_stats
+    from fidelity.lidar import lidar_stats
 
     t = real_root / "training"
     scan = np.fromfile(t / "velodyne/001206.bin", "<f4").reshape(-1, 4)
@@ -352,7 +352,7 @@ def test_a_car_labels_bottom_above_the_scans_road_by_geometry():
     statistic reads each label's bottom above the road the lifter finds under it."""
     from kitti.calib import Calibration
     from kitti.labels import Object3D
-    from testbed.fidelity.lidar import lidar_stats
+    from fidelity.lidar import lidar_stats
 
     calib = Calibration.kitti_default()
     x, z = np.meshgrid(np.arange(-15.0, 15.0, 0.2), np.arange(3.0, 50.0, 0.2))

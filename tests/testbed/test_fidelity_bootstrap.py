@@ -7,10 +7,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from testbed.fidelity import compare, compute_stats
-from testbed.fidelity.bootstrap import Interval, intervals
-from testbed.fidelity.catalog import STATS, Share, Stat, car_points, med, ring_median
-from testbed.fidelity.stats import Acc, DatasetStats, Draws, merge
+from fidelity import compare, compute_stats
+from fidelity.bootstrap import Interval, intervals
+from fidelity.catalog import STATS, Share, Stat, car_points, med, ring_median
+from fidelity.stats import Acc, DatasetStats, Draws, merge
 
 
 def _chunks() -> list[Acc]:
@@ -122,7 +122,7 @@ def test_the_real_dev_frames_against_themselves(real_root):
 def test_the_report_lists_the_decided_fails():
     """Real 1.0 and 1.1 against 2: +90 % at the median (1.05), every draw +82 % to +100 %: a decided
     fail, named with its difference; every statistic without values is n/a, never decided."""
-    from testbed.fidelity.report import _decided_fails
+    from fidelity.report import _decided_fails
 
     comp = compare(_one([2.0]), _one([1.0, 1.1]))
     rows = {r.key: r for r in comp.rows}

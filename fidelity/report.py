@@ -59,7 +59,7 @@ NOTES = f"""\
   it), by drive where `--sim-drives` / `--real-drives` say which frames share one (a draw takes
   all of a drive's frames: frames seconds apart show the same street), every statistic
   recomputed, the draws above with a fixed seed; the central 95 % of the relative differences
-  (`testbed.fidelity.bootstrap`). A verdict is decided when the whole interval lies on its side
+  (`fidelity.bootstrap`). A verdict is decided when the whole interval lies on its side
   of the tolerance, undecided when more frames like these could turn it; n/a where the statistic
   has no value in more than 5 % of the draws (too few objects).
 """
