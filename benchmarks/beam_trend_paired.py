@@ -38,7 +38,6 @@ from kitti.iou import iou_2d, iou_3d
 from kitti.labels import read_label
 from kitti.reduce import reduce_beams, source_beams_of
 from lifter.pipeline import lift_dataset
-from testbed.stages import sensor_beams
 
 THRESHOLDS = (0.7, 0.5)
 MIN_OVERLAP = 0.5  # 2D IoU for a detection's lifted box to stand for a label (KITTI's Car 2D: 0.7)
@@ -114,11 +113,11 @@ def main() -> None:
     args = ap.parse_args()
     ids = KittiDataset(args.data).ids(args.split)
     drives = None if args.drives is None else read_drives(args.drives)
-    native = source_beams_of(args.data, sensor_beams(args.data))
+    native = source_beams_of(args.data)
     roots = {native: args.data}
     for b in (int(x) for x in args.beams.split(",")):
         roots[b] = args.out / f"beams{b}"
-        reduce_beams(args.data, roots[b], b, sensor_beams=sensor_beams(args.data))
+        reduce_beams(args.data, roots[b], b)
     labels = car_labels(args.data, ids)
     every = [gt for frame in labels for gt in frame]
     keep = np.array([args.cars == "all" or not outside_difficulty(gt.height_px, gt.occluded, gt.truncated, 1)

@@ -11,8 +11,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
-
 import numpy as np
 
 from .derived import PARTS, claim_output, dump_json, meta_with_lidar, mirror_dataset, read_json
@@ -38,17 +36,18 @@ def reduce_ids(src: Path, part: str) -> list[str]:
     return sorted(p.stem for p in (src / part / "velodyne").glob("*.bin"))
 
 
-def source_beams_of(src: Path, sensor_beams: Callable[[dict], int] | None = None) -> int:
-    """Beams of the dataset's scans: its meta's sensor record (counted by `sensor_beams`, the
-    simulator's own table) when it was generated, else KITTI's 64."""
+def source_beams_of(src: Path) -> int:
+    """Beams of the dataset's scans: the count its meta's sensor record states when it was
+    generated, else KITTI's 64."""
     for part in PARTS:
         first = next(iter(sorted((src / part / "meta").glob("*.json"))), None)
         lidar = read_json(first).get("lidar") if first else None
         if isinstance(lidar, dict) and lidar.get("preset"):
-            if sensor_beams is None:
-                raise ValueError(f"{first}: scans of sensor {lidar['preset']!r}; give their "
-                                 "beam count (--source-beams)")
-            return sensor_beams(lidar)
+            beams = lidar.get("beams")
+            if not isinstance(beams, int) or isinstance(beams, bool) or beams < 1:
+                raise ValueError(f"{first}: field 'lidar.beams' is {beams!r}, not the scans' beam "
+                                 "count; give it (--source-beams)")
+            return beams
     return KITTI_BEAMS
 
 
@@ -82,12 +81,12 @@ def reduce_frame(job: ReduceJob) -> str:
     return job.fid
 
 
-def reduce_jobs(src: Path, out: Path, beams: int, source_beams: int | None = None,
-                sensor_beams: Callable[[dict], int] | None = None) -> list[ReduceJob]:
+def reduce_jobs(src: Path, out: Path, beams: int, source_beams: int | None = None
+                ) -> list[ReduceJob]:
     """Check the request, claim and mirror the output root, and list one job per scan.
 
     `source_beams` None: from the dataset (`source_beams_of`); it is recorded as given."""
-    n_in = source_beams if source_beams is not None else source_beams_of(src, sensor_beams)
+    n_in = source_beams if source_beams is not None else source_beams_of(src)
     jobs = [ReduceJob(src / part, out / part, fid, beams, n_in)
             for part in PARTS for fid in reduce_ids(src, part)]
     if not jobs:
@@ -100,8 +99,7 @@ def reduce_jobs(src: Path, out: Path, beams: int, source_beams: int | None = Non
 
 
 def reduce_beams(src: Path, out: Path, beams: int, source_beams: int | None = None,
-                 backend: Backend | None = None,
-                 sensor_beams: Callable[[dict], int] | None = None) -> list[str]:
+                 backend: Backend | None = None) -> list[str]:
     """Write `out`: `src` with every (source_beams / beams)-th ring of each scan; the frame ids."""
-    jobs = reduce_jobs(src, out, beams, source_beams, sensor_beams)
+    jobs = reduce_jobs(src, out, beams, source_beams)
     return (backend or InProcess()).map(reduce_frame, jobs, desc=f"reduce to {beams} beams")

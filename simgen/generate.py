@@ -109,7 +109,7 @@ def make_frame(job: Job) -> str:
         scan = lidar.scan(world, lspec, lidar_seed(job.seed, job.index))
         lidar.write_scan(training, fid, scan)
         counts = scan.point_counts()
-        lidar_info = section.model_dump()
+        lidar_info = lidar.sensor_record(section.preset, section.beams, section.max_range)
     objects, truths = derive(world, out.instance, job.spec.labels, counts)
     atomic_write_bytes(training / "image_2" / f"{fid}.png", _png(image[..., ::-1]))
     atomic_write_bytes(training / "depth_2" / f"{fid}.png", _png(encode_depth(out.depth)))
@@ -149,12 +149,11 @@ def generate(spec: SceneSpec, out: str | Path, frames: int | None = None, seed: 
     root = Path(out)
     n = spec.frames if frames is None else frames
     seed = spec.seed if seed is None else seed
-    if spec.lidar is not None:
-        _lidar_api()  # fail before any work if the LiDAR code is missing
-    elif spec.labels.min_lidar_points:
+    if spec.lidar is None and spec.labels.min_lidar_points:
         raise ValueError("labels.min_lidar_points counts LiDAR returns: the spec needs a lidar")
-    _check_manifest(root, {"spec": spec_to_dict(spec), "seed": seed,
-                           "lidar": None if spec.lidar is None else spec.lidar.model_dump()})
+    lidar = None if spec.lidar is None else \
+        _lidar_api().sensor_record(spec.lidar.preset, spec.lidar.beams, spec.lidar.max_range)
+    _check_manifest(root, {"spec": spec_to_dict(spec), "seed": seed, "lidar": lidar})
     jobs = [Job(spec, seed, i, root) for i in range(n)]
     (backend or InProcess()).map(make_frame, jobs, desc=f"generate {spec.name}")
     train, val = split_ids(n, spec.split.train_fraction, seed)

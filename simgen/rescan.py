@@ -47,8 +47,10 @@ class RescanRequest:
     weather: WeatherOverride | None = None
 
     def record(self) -> dict:
-        """As written to lidar.json and to every frame's meta."""
-        rec = self.lidar.model_dump()
+        """As written to lidar.json and to every frame's meta (the beam count always a number)."""
+        from .lidar import sensor_record
+
+        rec = sensor_record(self.lidar.preset, self.lidar.beams, self.lidar.max_range)
         if self.weather is not None and self.weather.record():
             rec["weather"] = self.weather.record()
         return rec

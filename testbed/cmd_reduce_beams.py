@@ -25,12 +25,10 @@ def reduce_beams(data: Path, beams: int, out: Path, source_beams: int | None,
     from kitti.reduce import reduce_beams as reduce_dataset
 
     from .backends import LocalBackend
-    from .stages import sensor_beams
 
     try:
         with LocalBackend(workers) as backend:
-            ids = reduce_dataset(data, out, beams, source_beams, backend,
-                                 sensor_beams=sensor_beams(data))
+            ids = reduce_dataset(data, out, beams, source_beams, backend)
     except ValueError as e:
         raise click.ClickException(str(e)) from None
     click.echo(f"{len(ids)} scans reduced to {beams} beams in {out}")

@@ -114,18 +114,8 @@ def reduce_beams(reductions: list[Reduction], backend: Backend) -> None:
     from kitti.reduce import reduce_frame, reduce_jobs
 
     _batch(reductions,
-           lambda r: reduce_jobs(r.data, r.out, r.beams, sensor_beams=sensor_beams(r.data)),
+           lambda r: reduce_jobs(r.data, r.out, r.beams),
            reduce_frame, "reduce beams", lambda r: {"data": str(r.data), "beams": r.beams}, backend)
-
-
-def sensor_beams(data: Path):
-    """How to count a generated dataset's beams from its meta (the simulator's sensor table);
-    None for other datasets, so real KITTI never imports the simulator."""
-    if not any((data / part / "meta").is_dir() for part in ("training", "testing")):
-        return None
-    from simgen.lidar import beams_of
-
-    return beams_of
 
 
 @dataclass(frozen=True)

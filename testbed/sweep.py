@@ -1,7 +1,7 @@
 """Sweeps: the same worlds re-scanned with other sensors, lifted and evaluated at every point.
 
 A sweep spec names the scenes and the axes. Every scan configuration re-scans the worlds of the
-scene's base dataset (`simgen.rescan`) or drops rings from its 64-beam scan (`kitti.reduce`, the
+scene's base dataset (`simgen.rescan`) or drops rings from its native scan (`kitti.reduce`, the
 thesis's way), so across a sweep the images and labels are byte-identical and only the LiDAR
 changes. Frames and points are independent jobs on the run's one backend; each stage marks itself
 done on disk, so a stopped sweep resumes where it stopped.
@@ -105,6 +105,11 @@ def load_sweep(path: Path) -> SweepSpec:
 
 @dataclass(frozen=True)
 class ScanConfig:
+    """One scan of a sweep. `beams` is always the number of lasers the scan has; the mode says how
+    a count other than the sensor's own is made: `native` scans with a sensor built with that many
+    lasers (the preset's own table at its own count, else `uniform` lasers spaced evenly over the
+    HDL-64E's vertical field), `dropped` keeps every k-th ring of the preset's own scan."""
+
     lidar: str
     beams: int
     mode: str  # native | dropped
@@ -112,13 +117,28 @@ class ScanConfig:
     weather: LidarWeather | None = None
 
     @property
+    def sensor(self) -> str:
+        """The preset that makes the scan: the named one, or `uniform` for a native count it lacks."""
+        if self.mode == "dropped" or self.beams == own_beams(self.lidar):
+            return self.lidar
+        return "uniform"
+
+    @property
     def key(self) -> str:
+        """The scan's folder name: sensor, beams, mode, range and weather."""
         rng = "max" if self.max_range is None else f"{self.max_range:g}m"
-        return f"{self.lidar}-{self.beams}b-{self.mode}-{rng}{weather_suffix(self.weather)}"
+        return f"{self.sensor}-{self.beams}b-{self.mode}-{rng}{weather_suffix(self.weather)}"
 
     def parent(self) -> ScanConfig:
-        """The 64-beam native scan a dropped scan keeps rings of."""
-        return ScanConfig(self.lidar, 64, "native", self.max_range, self.weather)
+        """The native scan at the preset's own count that a dropped scan keeps rings of."""
+        return ScanConfig(self.lidar, own_beams(self.lidar), "native", self.max_range, self.weather)
+
+
+def own_beams(lidar: str) -> int:
+    """The preset's own beam count (`uniform`: its default)."""
+    from simgen.lidar import preset
+
+    return preset(lidar).beams
 
 
 def weather_suffix(w: LidarWeather | None) -> str:
@@ -187,10 +207,11 @@ def plan(spec: SweepSpec, root: Path | None = None) -> Plan:
     scans: list[ScanConfig] = []
     for lidar, beams, mode, rng, weather in itertools.product(ax.lidar, ax.beams, ax.beam_mode,
                                                               ax.max_range, ax.weather):
-        if mode == "dropped" and (beams >= 64 or 64 % beams):
-            continue  # rings are dropped from a 64-beam scan: only divisors of 64 below it
+        own = own_beams(lidar)
+        if mode == "dropped" and (beams >= own or own % beams):
+            continue  # rings are dropped from the preset's own scan: only divisors below its count
         scans.append(ScanConfig(lidar, beams, mode, rng, weather))
-    for s in list(scans):  # a dropped scan needs its 64-beam native parent
+    for s in list(scans):  # a dropped scan needs its native parent
         if s.mode == "dropped" and s.parent() not in scans:
             scans.insert(0, s.parent())
     points = []
@@ -209,18 +230,15 @@ def scene_name(scene: SceneRef) -> str:
 
 
 def rescan_request(c: ScanConfig) -> RescanRequest:
-    """The simulator request of a native scan configuration: the named preset at its own beam
-    count, else a uniform sensor with `beams` lasers over the HDL-64E's vertical field of view (on a
-    real preset fewer beams means dropped rings, which is the `dropped` mode)."""
-    from simgen.lidar import preset
+    """The simulator request of a native scan configuration: its sensor (`ScanConfig.sensor`)
+    with `beams` lasers."""
     from simgen.rescan import RescanRequest, WeatherOverride
     from simgen.spec import LidarSection
 
-    native = c.lidar != "uniform" and preset(c.lidar).beams == c.beams
-    name, beams = (c.lidar, None) if native else ("uniform", c.beams)
+    beams = c.beams if c.sensor == "uniform" else None  # a real preset at its own count
     weather = None if c.weather is None else WeatherOverride(c.weather.fog_extinction,
                                                              c.weather.rain_rate)
-    return RescanRequest(LidarSection(preset=name, beams=beams, max_range=c.max_range), weather)
+    return RescanRequest(LidarSection(preset=c.sensor, beams=beams, max_range=c.max_range), weather)
 
 
 def _code(*packages) -> list[Path]:

@@ -12,10 +12,10 @@ in `kitti`; rescanning a generated dataset's worlds is `simgen.rescan`.
 from .io import read_scan, write_scan
 from .rays import RayTable, ray_table
 from .scan import CLUTTER_ID, LidarScan, scan
-from .spec import PRESETS, LidarSpec, beams_of, preset
+from .spec import PRESETS, LidarSpec, preset, sensor_record
 from .target import Target, build_target
 
 __all__ = [
-    "CLUTTER_ID", "PRESETS", "LidarScan", "LidarSpec", "RayTable", "Target", "beams_of",
-    "build_target", "preset", "ray_table", "read_scan", "scan", "write_scan",
+    "CLUTTER_ID", "PRESETS", "LidarScan", "LidarSpec", "RayTable", "Target", "build_target",
+    "preset", "ray_table", "read_scan", "scan", "sensor_record", "write_scan",
 ]

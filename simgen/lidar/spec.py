@@ -311,6 +311,8 @@ def preset(name: str, beams: int | None = None, max_range: float | None = None,
 
 
 
-def beams_of(record: dict) -> int:
-    """Beam count of a sensor as a dataset's meta records it ({preset, beams, max_range})."""
-    return preset(record["preset"], beams=record.get("beams")).beams
+def sensor_record(preset_name: str, beams: int | None, max_range: float | None) -> dict:
+    """The sensor as a dataset's meta and manifest record it: the preset, the beam count it scans
+    with (always a number, so a reader never needs this table) and the range asked for."""
+    return {"preset": preset_name, "beams": preset(preset_name, beams=beams).beams,
+            "max_range": max_range}

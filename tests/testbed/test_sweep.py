@@ -15,6 +15,7 @@ from testbed.sweep import (
     LidarWeather,
     Point,
     ScanConfig,
+    SweepSpec,
     SweepSpecError,
     load_sweep,
     plan,
@@ -80,8 +81,19 @@ def test_native_scans_use_the_preset_at_its_own_count_else_a_uniform_sensor():
     assert sensor("uniform", 128) == ("uniform", 128)
     weather = LidarWeather(fog_extinction=0.03)
     request = rescan_request(ScanConfig("hdl64e", 64, "native", 40.0, weather))
-    assert request.record() == {"preset": "hdl64e", "beams": None, "max_range": 40.0,
+    assert request.record() == {"preset": "hdl64e", "beams": 64, "max_range": 40.0,
                                 "weather": {"fog_extinction": 0.03, "rain_rate": 0.0}}
+
+
+def test_scan_folders_name_the_sensor_and_the_mode():
+    assert ScanConfig("hdl64e", 64, "native", None).key == "hdl64e-64b-native-max"
+    assert ScanConfig("hdl64e", 16, "native", None).key == "uniform-16b-native-max"
+    assert ScanConfig("hdl64e", 16, "dropped", 40.0).key == "hdl64e-16b-dropped-40m"
+    assert ScanConfig("vlp16", 8, "dropped", None).parent() == ScanConfig("vlp16", 16, "native", None)
+    spec = SweepSpec(name="s", scenes=[{"spec": ROOT / "scenes/golden/street.yaml"}],
+                     axes={"lidar": ["vlp16"], "beams": [16, 8, 4, 3], "beam_mode": ["dropped"]})
+    assert [c.key for c in plan(spec).scans] == ["vlp16-16b-native-max", "vlp16-8b-dropped-max",
+                                                 "vlp16-4b-dropped-max"]
 
 
 def test_backends_return_results_in_job_order():

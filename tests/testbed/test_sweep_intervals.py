@@ -135,11 +135,11 @@ def test_a_box_claims_its_car_by_the_2d_box_and_an_unclaimed_car_scores_zero():
 def test_reference_is_each_axis_first_value_and_a_dropped_scan_its_64_beam_parent():
     p = plan(load_sweep(ROOT / "scenes" / "sweeps" / "beam_range_sweep.yaml"))
     found = {(axis, pt.key.split("/", 1)[1], ref.key.split("/", 1)[1]) for axis, pt, ref in comparisons(p)}
-    assert ("beams", "hdl64e-16b-native-max/fit-gt", "hdl64e-128b-native-max/fit-gt") in found
+    assert ("beams", "uniform-16b-native-max/fit-gt", "uniform-128b-native-max/fit-gt") in found
     assert ("beams", "hdl64e-16b-dropped-max/fit-gt", "hdl64e-64b-native-max/fit-gt") in found
-    assert ("beam_mode", "hdl64e-16b-dropped-max/fit-gt", "hdl64e-16b-native-max/fit-gt") in found
-    assert ("method", "hdl64e-16b-native-max/fit-gt", "hdl64e-16b-native-max/frustum-gt") in found
-    assert ("method", "no-lidar/mono-gt", "hdl64e-128b-native-max/frustum-gt") in found
+    assert ("beam_mode", "hdl64e-16b-dropped-max/fit-gt", "uniform-16b-native-max/fit-gt") in found
+    assert ("method", "uniform-16b-native-max/fit-gt", "uniform-16b-native-max/frustum-gt") in found
+    assert ("method", "no-lidar/mono-gt", "uniform-128b-native-max/frustum-gt") in found
     assert ("boxes", "no-lidar/mono-detector", "no-lidar/mono-gt") in found
     # the references themselves, and an image-only method along a LiDAR axis, compare nothing
     assert not [f for f in found if f[1] == f[2] or (f[0] == "beams" and f[1].startswith("no-lidar"))]
