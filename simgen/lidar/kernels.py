@@ -26,16 +26,21 @@ def inverse_doubled_areas(v, f):
 
 
 @numba.njit(cache=True, nogil=True)
-def ray_origins(col_origin, source, out):
-    """Every ray's origin into `out` (N, 3), rays ring-major: its column's origin `col_origin`
-    (C, 3) plus its laser's source `source` (N, 3; zero-length: none), in float32."""
-    columns = col_origin.shape[0]
+def ray_origins(o0, ego_v, col_t, source, out):
+    """Every ray's origin into `out` (N, 3) float32, rays ring-major: its column's, o0 + col_t *
+    ego_v rounded to float32 (`ego_v` zero-length: o0, a still sensor), plus its laser's source
+    `source` (N, 3; zero-length: none)."""
+    columns = col_t.shape[0]
+    col = np.empty((columns, 3), np.float32)
+    for c in range(columns):
+        for a in range(3):
+            col[c, a] = np.float32(o0[a] + col_t[c] * ego_v[a]) if ego_v.shape[0] else np.float32(o0[a])
     has_src = source.shape[0] > 0
     for ring in range(out.shape[0] // columns):
         for c in range(columns):
             i = ring * columns + c
             for a in range(3):
-                out[i, a] = col_origin[c, a] + source[i, a] if has_src else col_origin[c, a]
+                out[i, a] = col[c, a] + source[i, a] if has_src else col[c, a]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -79,19 +84,21 @@ def pass_prepare(cand, u, prim, tfar, ng, origins, d_w, inv_ng, tri_mat, mat_t, 
     too (`loss` takes that pane's transmittance) and goes on. A porous material lets the ray go
     on where `u` is below its porosity. Returns the rays that go on, and the origins,
     directions and start ranges (from the sensor) of their next query, `step` beyond the
-    surface they leave."""
+    surface they leave, and how many of `cand` met glass."""
     n = cand.shape[0]
     sel = np.empty(n, np.int64)
     o2 = np.empty((n, 3), np.float32)
     d2 = np.empty((n, 3), np.float32)
     start = np.empty(n, np.float32)
     k = 0
+    glass = 0
     for c in range(n):
         i = cand[c]
         t = prim[i]
         m = tri_mat[t]
         s = tfar[i]
         if mat_t[m] > 0:
+            glass += 1
             g = tri_glass[t]
             x0 = origins[i, 0] + s * d_w[i, 0]
             x1 = origins[i, 1] + s * d_w[i, 1]
@@ -144,7 +151,14 @@ def pass_prepare(cand, u, prim, tfar, ng, origins, d_w, inv_ng, tri_mat, mat_t, 
             d2[k, a] = d_w[i, a]
             o2[k, a] = origins[i, a] + s * d_w[i, a]
         k += 1
-    return sel[:k], o2[:k], d2[:k], start[:k]
+    return sel[:k], o2[:k], d2[:k], start[:k], glass
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _floor(x):
+    """math.floor of a float64 x (|x| < 2 ** 63) as a float, without the helper call numba makes."""
+    f = np.float64(np.int64(x))
+    return f - 1.0 if f > x else f
 
 
 @numba.njit(cache=True, nogil=True)
@@ -177,7 +191,7 @@ def window_returns(prim, tfar, d_w, origins, tri_wall, walls, panes, n_panes, lo
         v = (z - walls[w, 5]) / walls[w, 6]
         if v < 0.0:
             continue
-        fu, fv = u - math.floor(u), v - math.floor(v)
+        fu, fv = u - _floor(u), v - _floor(v)
         k = int(walls[w, 7])
         j = -1
         for q in range(n_panes[k]):
@@ -367,7 +381,8 @@ def read_returns(idx, r, rho, need, v, clamp_v, scatter, ext, noise, noise_sigma
     compensation beyond the range whose threshold is need0); `scatter` holds the scatter's
     quantiles at len(scatter) equal steps of a uniform. s reads 0 below floor0, else k /
     per_step, k = round(s * per_step) <= k_max. A return lies at its ray's `source` (N, 3;
-    zero-length: the origin) + range x direction."""
+    zero-length: the origin) + range x direction. Positions, then readings: two short loops
+    keep their arrays in registers, where one long loop spills them."""
     n = idx.shape[0]
     points = np.empty((n, 4), np.float32)
     ring = np.empty(n, np.uint8)
@@ -377,7 +392,7 @@ def read_returns(idx, r, rho, need, v, clamp_v, scatter, ext, noise, noise_sigma
     has_ext = ext.shape[0] > 0
     has_src = source.shape[0] > 0
     n_q = scatter.shape[0]
-    for k in range(n):  # where: two short loops keep their arrays in registers
+    for k in range(n):  # positions
         i = np.uint64(idx[k])
         lz = ring_t[i]
         ring[k] = lz
@@ -392,7 +407,7 @@ def read_returns(idx, r, rho, need, v, clamp_v, scatter, ext, noise, noise_sigma
         else:
             for a in range(3):
                 points[k, a] = dirs4[i, a] * rr
-    for k in range(n):  # what it reads
+    for k in range(n):  # readings
         value = np.float32(0.0)
         if v[k] >= 0:
             echo = gain[ring[k]] * rho[k]

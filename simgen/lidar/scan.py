@@ -66,6 +66,7 @@ CLUTTER_ID = -1
 _NONE = np.zeros(0, np.float32)
 _NONE3 = np.zeros((0, 3), np.float32)
 _NONE_BOOL = np.zeros(0, bool)
+_NONE64 = np.zeros(0, np.float64)
 # A ray that goes on is cast again from just behind the surface it leaves (float32 positions out
 # to 120 m are good to 10 micrometres, so it cannot meet that surface again).
 PASS_STEP = 1e-3  # m
@@ -137,15 +138,12 @@ def _origins(world: World, spec: LidarSpec, rays: RayTable, n: int) -> np.ndarra
     shared by its lasers; else the LiDAR's position for every ray; plus, where the lasers fire
     from sources of their own, the ray's source turned with the rig (kernels.ray_origins)."""
     ego_v = np.asarray(world.ego_velocity, dtype=np.float64)
-    o0 = world.lidar_pose[:3, 3]
-    if spec.motion and np.any(ego_v):
-        col = (o0 + rays.time[:rays.columns, None] * ego_v).astype(np.float32)
-    else:
-        col = np.repeat(o0.astype(np.float32)[None], rays.columns, axis=0)
+    moving = spec.motion and bool(ego_v.any())
     source = (_world_source(spec, tuple(world.lidar_pose[:3, :3].ravel().tolist()))
               if rays.source is not None else _NONE3)
     origins = np.empty((n, 3), np.float32)
-    ray_origins(col, source, origins)
+    ray_origins(world.lidar_pose[:3, 3], ego_v if moving else _NONE64, rays.time[:rays.columns], source,
+                origins)
     return origins
 
 
@@ -173,12 +171,12 @@ def _pass_through(tgt: Target, spec: LidarSpec, rng: np.random.Generator, origin
     for _ in range(MAX_PASSES):
         if not len(cand):
             break
-        any_glass = any_glass or bool(tgt.mat_transmittance[tgt.tri_mat[prim[cand]]].max() > 0)
         u = rng.random(len(cand), dtype=np.float32)  # one per candidate: part of the seed's meaning
-        sel, o2, d2, start = pass_prepare(cand, u, prim, tfar, ng, origins, d_w, tgt.tri_inv_ng,
-                                          tgt.tri_mat, tgt.mat_transmittance, tgt.mat_porosity,
-                                          tgt.tri_glass, tgt.glass_planes, loss, PANE_MAX, GLASS_R0,
-                                          PASS_STEP, CABIN, CABIN_DEPTH_M)
+        sel, o2, d2, start, glass = pass_prepare(cand, u, prim, tfar, ng, origins, d_w, tgt.tri_inv_ng,
+                                                 tgt.tri_mat, tgt.mat_transmittance, tgt.mat_porosity,
+                                                 tgt.tri_glass, tgt.glass_planes, loss, PANE_MAX,
+                                                 GLASS_R0, PASS_STEP, CABIN, CABIN_DEPTH_M)
+        any_glass = any_glass or glass > 0
         if not len(sel):
             cand = sel
             break
