@@ -10,6 +10,7 @@ reproduces the original scans bit for bit.
 from __future__ import annotations
 
 import zlib
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -57,48 +58,73 @@ class RescanRequest:
 
 
 @dataclass(frozen=True)
-class RescanJob:
-    src: Path  # source part folder (…/training)
-    dst: Path
-    fid: str
+class RescanOutput:
+    """Where one request's scans of a frame go."""
+
+    dst: Path  # output part folder (…/training)
     request: RescanRequest
 
 
+@dataclass(frozen=True)
+class RescanJob:
+    """One frame of a source dataset, scanned for every output: the world is rebuilt once."""
+
+    src: Path  # source part folder (…/training)
+    fid: str
+    outputs: tuple[RescanOutput, ...]
+
+
+def _complete(dst: Path, fid: str) -> bool:
+    """A frame is done once its meta, .bin and side file exist (meta is written last)."""
+    return ((dst / "meta" / f"{fid}.json").exists() and velodyne_path(dst, fid).exists()
+            and info_path(dst, fid).exists())
+
+
 def rescan_frame(job: RescanJob) -> str:
-    """Rebuild one frame's world from its meta and scan it with the requested sensor."""
+    """Rebuild one frame's world from its meta and scan it with every output's sensor not yet
+    done there. The world and its Embree target are built once for all of them (a LiDAR-only
+    weather override changes what the scan sees, not the target)."""
     from .lidar import preset, scan, write_scan  # the simulator; imported in the worker
+    from .lidar.target import TargetCache
     from .meta import load_world
 
-    meta_out = job.dst / "meta" / f"{job.fid}.json"
-    if meta_out.exists() and velodyne_path(job.dst, job.fid).exists() \
-            and info_path(job.dst, job.fid).exists():
+    todo = [o for o in job.outputs if not _complete(o.dst, job.fid)]
+    if not todo:
         return job.fid
     meta, world = load_world(job.src / "meta" / f"{job.fid}.json")
-    lidar, weather = job.request.lidar, job.request.weather
-    if weather is not None and weather.record():  # the sensor sees other weather, not the images
-        world.weather = replace(world.weather, **weather.record())
-    spec = preset(lidar.preset, beams=lidar.beams, max_range=lidar.max_range)
-    s = scan(world, spec, lidar_seed(int(meta["seed"]), int(meta["frame_index"])))
-    write_scan(job.dst, job.fid, s)
-    atomic_write_text(meta_out, dump_json(meta_with_lidar(meta, s.point_counts(),
-                                                          job.request.record())))
+    targets = TargetCache(world)
+    seed = lidar_seed(int(meta["seed"]), int(meta["frame_index"]))
+    for out in todo:
+        lidar, weather = out.request.lidar, out.request.weather
+        spec = preset(lidar.preset, beams=lidar.beams, max_range=lidar.max_range)
+        seen = world  # the sensor sees other weather, not the images
+        if weather is not None and weather.record():
+            seen = replace(world, weather=replace(world.weather, **weather.record()))
+        s = scan(seen, spec, seed, target=targets.get(spec))
+        write_scan(out.dst, job.fid, s)
+        atomic_write_text(out.dst / "meta" / f"{job.fid}.json",
+                          dump_json(meta_with_lidar(meta, s.point_counts(), out.request.record())))
     return job.fid
 
 
-def rescan_jobs(src: Path, out: Path, request: RescanRequest) -> list[RescanJob]:
-    """Check the request, claim and mirror the output root, and list one job per frame."""
+def rescan_jobs(src: Path, outputs: Sequence[tuple[Path, RescanRequest]]) -> list[RescanJob]:
+    """Check every request, claim and mirror each output root, and list one job per frame of
+    `src` that serves all of them."""
     from .lidar import preset
     from .meta import meta_ids
 
-    lidar = request.lidar
-    preset(lidar.preset, beams=lidar.beams, max_range=lidar.max_range)  # fail before any work
+    for _, request in outputs:
+        lidar = request.lidar
+        preset(lidar.preset, beams=lidar.beams, max_range=lidar.max_range)  # fail before any work
     ids = meta_ids(src, "rescan")
-    claim_output(src, out, {"command": "rescan", "lidar": request.record()})
-    mirror_dataset(src, out)
-    return [RescanJob(src / "training", out / "training", fid, request) for fid in ids]
+    for out, request in outputs:
+        claim_output(src, out, {"command": "rescan", "lidar": request.record()})
+        mirror_dataset(src, out)
+    parts = tuple(RescanOutput(out / "training", request) for out, request in outputs)
+    return [RescanJob(src / "training", fid, parts) for fid in ids]
 
 
 def rescan(src: Path, out: Path, request: RescanRequest, backend: Backend | None = None) -> list[str]:
     """Write `out`: the worlds of `src` scanned by the requested sensor; the frame ids."""
-    jobs = rescan_jobs(src, out, request)
+    jobs = rescan_jobs(src, [(out, request)])
     return (backend or InProcess()).map(rescan_frame, jobs, desc=f"rescan {request.lidar.preset}")

@@ -4,8 +4,9 @@ and evaluate.
 Each stage calls the library function a user would call from Python (and the `testbed`
 subcommand wraps), writes into its own folder and marks it complete with a `.done` file written
 last, so a stopped pipeline resumes by skipping what is marked. Stages that touch many frames map
-their per-frame jobs on the run's one backend; the scan stages take many scans at once, so every
-frame of every scan configuration is one job on that backend.
+their per-frame jobs on the run's one backend; the scan stages take many scans at once: every
+frame of a dataset is one rescan job for all its scan configurations, and every frame of every
+beam reduction is one job.
 """
 
 from __future__ import annotations
@@ -94,11 +95,21 @@ def _rescan_record(s: Rescan) -> dict:
 
 
 def rescan(scans: list[Rescan], backend: Backend) -> None:
-    """Every frame of every scan not yet done, as one batch of jobs on the backend."""
+    """Every frame of every scan not yet done, as one batch of jobs on the backend: one job per
+    frame of each base dataset, which rebuilds that frame's world and its Embree scene once and
+    scans it for all of that base's configurations."""
     from simgen.rescan import rescan_frame, rescan_jobs
 
-    _batch(scans, lambda s: rescan_jobs(s.base, s.out, s.request), rescan_frame, "rescan",
-           _rescan_record, backend)
+    todo = [s for s in scans if not is_done(s.out)]
+    by_base: dict[Path, list[Rescan]] = {}
+    for s in todo:
+        by_base.setdefault(s.base, []).append(s)
+    jobs = [j for base, group in by_base.items()
+            for j in rescan_jobs(base, [(s.out, s.request) for s in group])]
+    if jobs:
+        backend.map(rescan_frame, jobs, desc="rescan")
+    for s in todo:
+        mark_done(s.out, _rescan_record(s))
 
 
 @dataclass(frozen=True)

@@ -26,6 +26,24 @@ def inverse_doubled_areas(v, f):
 
 
 @numba.njit(cache=True, nogil=True)
+def ray_origins(o0, ego_v, col_t, source, out):
+    """Every ray's origin into `out` (N, 3) float32, rays ring-major: its column's, o0 + col_t *
+    ego_v rounded to float32 (`ego_v` zero-length: o0, a still sensor), plus its laser's source
+    `source` (N, 3; zero-length: none)."""
+    columns = col_t.shape[0]
+    col = np.empty((columns, 3), np.float32)
+    for c in range(columns):
+        for a in range(3):
+            col[c, a] = np.float32(o0[a] + col_t[c] * ego_v[a]) if ego_v.shape[0] else np.float32(o0[a])
+    has_src = source.shape[0] > 0
+    for ring in range(out.shape[0] // columns):
+        for c in range(columns):
+            i = ring * columns + c
+            for a in range(3):
+                out[i, a] = col[c, a] + source[i, a] if has_src else col[c, a]
+
+
+@numba.njit(cache=True, nogil=True)
 def pass_candidates(prim, passes):
     """The rays whose hit is on a triangle that rays may pass (`passes` per triangle)."""
     out = np.empty(prim.shape[0], np.int64)
@@ -66,19 +84,21 @@ def pass_prepare(cand, u, prim, tfar, ng, origins, d_w, inv_ng, tri_mat, mat_t, 
     too (`loss` takes that pane's transmittance) and goes on. A porous material lets the ray go
     on where `u` is below its porosity. Returns the rays that go on, and the origins,
     directions and start ranges (from the sensor) of their next query, `step` beyond the
-    surface they leave."""
+    surface they leave, and how many of `cand` met glass."""
     n = cand.shape[0]
     sel = np.empty(n, np.int64)
     o2 = np.empty((n, 3), np.float32)
     d2 = np.empty((n, 3), np.float32)
     start = np.empty(n, np.float32)
     k = 0
+    glass = 0
     for c in range(n):
         i = cand[c]
         t = prim[i]
         m = tri_mat[t]
         s = tfar[i]
         if mat_t[m] > 0:
+            glass += 1
             g = tri_glass[t]
             x0 = origins[i, 0] + s * d_w[i, 0]
             x1 = origins[i, 1] + s * d_w[i, 1]
@@ -131,7 +151,14 @@ def pass_prepare(cand, u, prim, tfar, ng, origins, d_w, inv_ng, tri_mat, mat_t, 
             d2[k, a] = d_w[i, a]
             o2[k, a] = origins[i, a] + s * d_w[i, a]
         k += 1
-    return sel[:k], o2[:k], d2[:k], start[:k]
+    return sel[:k], o2[:k], d2[:k], start[:k], glass
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _floor(x):
+    """math.floor of a float64 x (|x| < 2 ** 63) as a float, without the helper call numba makes."""
+    f = np.float64(np.int64(x))
+    return f - 1.0 if f > x else f
 
 
 @numba.njit(cache=True, nogil=True)
@@ -164,7 +191,7 @@ def window_returns(prim, tfar, d_w, origins, tri_wall, walls, panes, n_panes, lo
         v = (z - walls[w, 5]) / walls[w, 6]
         if v < 0.0:
             continue
-        fu, fv = u - math.floor(u), v - math.floor(v)
+        fu, fv = u - _floor(u), v - _floor(v)
         k = int(walls[w, 7])
         j = -1
         for q in range(n_panes[k]):
@@ -225,24 +252,25 @@ def pass_apply(sel, start, prim_q, tfar_q, ng_q, prim, tfar, ng, passes):
 
 
 @numba.njit(cache=True, nogil=True)
-def _moved(i, s, rr, thr, ng, d_w, origins, ray_time, placed_time, placed_origin, velocity,
-           yaw_rate, gamma):
-    """Range and threshold of ray i's hit on moving actor slot s at the ray's own time (see
-    detect_rays: the facet plane moves with the actor's rigid motion since its placement)."""
-    dt = ray_time[i] - placed_time[s]
+def _moved(rr, thr, d, o, n, dt, p0, vel, yaw, gamma):
+    """Range and threshold of a hit at range `rr` on a moving actor, at the ray's own time `dt`
+    after the actor's placement (see detect_rays: the facet plane moves with the actor's rigid
+    motion). Per ray its direction `d`, origin `o` (x, y) and facet normal `n` (float32);
+    per actor its placed origin `p0` (x, y), velocity `vel` and yaw rate `yaw`. Scalars only: a
+    call per moving hit then costs no reference counting."""
     r64 = np.float64(rr)
-    dx, dy, dz = np.float64(d_w[i, 0]), np.float64(d_w[i, 1]), np.float64(d_w[i, 2])
-    ex = velocity[s, 0] * dt
-    ey = velocity[s, 1] * dt
-    ez = velocity[s, 2] * dt
-    if yaw_rate[s] != 0.0:
-        relx = np.float64(origins[i, 0]) + r64 * dx - placed_origin[s, 0]
-        rely = np.float64(origins[i, 1]) + r64 * dy - placed_origin[s, 1]
-        a = yaw_rate[s] * dt
+    dx, dy, dz = np.float64(d[0]), np.float64(d[1]), np.float64(d[2])
+    ex = vel[0] * dt
+    ey = vel[1] * dt
+    ez = vel[2] * dt
+    if yaw != 0.0:
+        relx = np.float64(o[0]) + r64 * dx - p0[0]
+        rely = np.float64(o[1]) + r64 * dy - p0[1]
+        a = yaw * dt
         ca, sa = math.cos(a), math.sin(a)
         ex += (ca - 1.0) * relx - sa * rely
         ey += sa * relx + (ca - 1.0) * rely
-    nx, ny, nz = np.float64(ng[i, 0]), np.float64(ng[i, 1]), np.float64(ng[i, 2])
+    nx, ny, nz = np.float64(n[0]), np.float64(n[1]), np.float64(n[2])
     nd = nx * dx + ny * dy + nz * dz
     if abs(nd) > 1e-3:
         shift = (nx * ex + ny * ey + nz * ez) / nd
@@ -251,14 +279,17 @@ def _moved(i, s, rr, thr, ng, d_w, origins, ray_time, placed_time, placed_origin
 
 
 @numba.njit(cache=True, nogil=True)
-def detect_rays(prim, tfar, ng, d_w, origins, inv_ng, loss, refl, tri_refl, tri_expo, tri_actor, need,
-                ext, u, beams, columns, drop, zero, detect, min_range, max_range, motion,
-                first_moving, tri_slot, ray_time, placed_time, placed_origin, velocity, yaw_rate,
-                gamma):
+def detect_rays(prim, tfar, ng, d_w, origins, inv_ng, loss, refl, tri_refl, tri_expo, tri_actor,
+                need_exp, need_scale, hidden, ext, u, beams, columns, drop, zero, detect, min_range,
+                max_range, motion, first_moving, tri_slot, ray_time, placed_time, placed_origin,
+                velocity, yaw_rate, gamma):
     """Every ray's return (scan.py, steps 3-5), the kept ones compacted. Rays are ring-major
     (ray i = ring * columns + column), so the per-laser values (`drop`, `zero`: one per ring)
-    are read once per ring. Per ray with a hit:
+    are read once per ring. A ray `hidden` (zero-length: none) returns nothing. Per ray with a
+    hit:
 
+    threshold: need = range ** need_exp * need_scale in float32 (LidarSpec.threshold, the same
+    two roundings), on the true range;
     motion (if `motion` and the triangle is a moving actor's, index >= first_moving): the hit
     material point moves by the actor's rigid motion `delta` between its placement time and
     the ray's own time; the facet plane moves with it, so the range changes by
@@ -268,9 +299,9 @@ def detect_rays(prim, tfar, ng, d_w, origins, inv_ng, loss, refl, tri_refl, tri_
     echo: rho_eff = reflectivity * |cos incidence| ** k (* `loss`, glass; zero-length: none), or
     where `refl` is not negative (zero-length: nowhere) refl * loss (a beam that ended behind a
     window: window_returns);
-    detection: rho_eff (* `ext`, two-way extinction; zero-length: clear air) >= `need`, the
-    threshold at the true range; then dropped where the ray's uniform `u` is below its laser's
-    rate `drop`; the true range must lie in [min_range, max_range].
+    detection: rho_eff (* `ext`, two-way extinction; zero-length: clear air) >= need; then
+    dropped where the ray's uniform `u` is below its laser's rate `drop`; the true range must
+    lie in [min_range, max_range].
 
     The same uniform, rescaled past the drop-out (uniform again and independent of it), decides
     the reading (scan._read): below the laser's `zero` share the laser reads 0 (v = -1); above
@@ -284,6 +315,7 @@ def detect_rays(prim, tfar, ng, d_w, origins, inv_ng, loss, refl, tri_refl, tri_
     aid_o = np.empty(n, np.int32)
     v_o = np.empty(n, np.float32)
     has_loss, has_refl, has_ext = loss.shape[0] > 0, refl.shape[0] > 0, ext.shape[0] > 0
+    has_hidden = hidden.shape[0] > 0
     one = np.float32(1.0)
     k = 0
     for ring in range(beams):
@@ -291,13 +323,18 @@ def detect_rays(prim, tfar, ng, d_w, origins, inv_ng, loss, refl, tri_refl, tri_
         z = zero[ring]
         for i in range(ring * columns, (ring + 1) * columns):
             t = prim[i]
-            if t < 0:
+            if t < 0 or u[i] < d or (has_hidden and hidden[i]):
                 continue
             rr = tfar[i]
-            thr = need[i]
+            thr = np.float32(rr ** need_exp) * need_scale
             if motion and t >= first_moving:
-                rr, thr = _moved(i, tri_slot[t], rr, thr, ng, d_w, origins, ray_time, placed_time,
-                                 placed_origin, velocity, yaw_rate, gamma)
+                a = tri_slot[t]
+                rr, thr = _moved(rr, thr, (d_w[i, 0], d_w[i, 1], d_w[i, 2]), (origins[i, 0], origins[i, 1]),
+                                 (ng[i, 0], ng[i, 1], ng[i, 2]), ray_time[i] - placed_time[a],
+                                 (placed_origin[a, 0], placed_origin[a, 1]),
+                                 (velocity[a, 0], velocity[a, 1], velocity[a, 2]), yaw_rate[a], gamma)
+            if rr < min_range or rr > max_range:
+                continue
             e = tri_expo[t]
             if has_refl and refl[i] >= 0.0:
                 rho = refl[i]
@@ -312,10 +349,6 @@ def detect_rays(prim, tfar, ng, d_w, origins, inv_ng, loss, refl, tri_refl, tri_
                 p = rho * ext[i] if has_ext else rho
                 if p < thr:
                     continue
-            if u[i] < d:
-                continue
-            if rr < min_range or rr > max_range:
-                continue
             idx_o[k] = i
             r_o[k] = rr
             rho_o[k] = rho
@@ -325,6 +358,15 @@ def detect_rays(prim, tfar, ng, d_w, origins, inv_ng, loss, refl, tri_refl, tri_
             v_o[k] = -1.0 if w < z else (w - z) / (one - z)  # uniform on [0, 1) once more
             k += 1
     return idx_o[:k], r_o[:k], rho_o[:k], need_o[:k], aid_o[:k], v_o[:k]
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _rint(x):
+    """np.rint of a float32 x >= 0 without the library call: adding 2 ** 23 leaves no fraction
+    bits, so the sum rounds half to even as rint does, and taking it off again is exact; from
+    2 ** 23 up every float32 is an integer already."""
+    big = np.float32(8388608.0)
+    return (x + big) - big if x < big else x
 
 
 @numba.njit(cache=True, nogil=True)
@@ -339,7 +381,8 @@ def read_returns(idx, r, rho, need, v, clamp_v, scatter, ext, noise, noise_sigma
     compensation beyond the range whose threshold is need0); `scatter` holds the scatter's
     quantiles at len(scatter) equal steps of a uniform. s reads 0 below floor0, else k /
     per_step, k = round(s * per_step) <= k_max. A return lies at its ray's `source` (N, 3;
-    zero-length: the origin) + range x direction."""
+    zero-length: the origin) + range x direction. Positions, then readings: two short loops
+    keep their arrays in registers, where one long loop spills them."""
     n = idx.shape[0]
     points = np.empty((n, 4), np.float32)
     ring = np.empty(n, np.uint8)
@@ -349,23 +392,25 @@ def read_returns(idx, r, rho, need, v, clamp_v, scatter, ext, noise, noise_sigma
     has_ext = ext.shape[0] > 0
     has_src = source.shape[0] > 0
     n_q = scatter.shape[0]
-    for k in range(n):
-        i = idx[k]
+    for k in range(n):  # positions
+        i = np.uint64(idx[k])
         lz = ring_t[i]
-        rr = r[k]
-        if noisy:
-            rr = rr + bias[lz] + noise[k] * noise_sigma
-        for a in range(3):
-            points[k, a] = dirs4[i, a] * rr
-        if has_src:
-            for a in range(3):
-                points[k, a] += source[i, a]
         ring[k] = lz
         az[k] = az_t[i]
         tm[k] = time_t[i]
+        rr = r[k]
+        if noisy:
+            rr = rr + bias[lz] + noise[k] * noise_sigma
+        if has_src:
+            for a in range(3):
+                points[k, a] = dirs4[i, a] * rr + source[i, a]
+        else:
+            for a in range(3):
+                points[k, a] = dirs4[i, a] * rr
+    for k in range(n):  # readings
         value = np.float32(0.0)
         if v[k] >= 0:
-            echo = gain[lz] * rho[k]
+            echo = gain[ring[k]] * rho[k]
             if has_ext:
                 echo *= ext[k]
             if echo * scatter[min(int(clamp_v[k] * n_q), n_q - 1)] >= floor_power * need[k]:
@@ -373,6 +418,6 @@ def read_returns(idx, r, rho, need, v, clamp_v, scatter, ext, noise, noise_sigma
                 if need[k] > need0:
                     s *= need0 / need[k]
                 if s >= floor0:
-                    value = min(np.rint(s * per_step), k_max) / per_step
+                    value = min(_rint(s * per_step), k_max) / per_step
         points[k, 3] = value
     return points, ring, az, tm

@@ -51,7 +51,9 @@ import numpy as np
 from ..materials import CURTAIN_REFLECTIVITY, ROOM_REFLECTIVITY, WINDOW_TRANSMITTANCE
 from ..textures import glass_cabin_bands
 from ..world import World
-from .kernels import detect_rays, pass_apply, pass_candidates, pass_prepare, read_returns, window_returns
+from .draws import standard_normal
+from .kernels import (detect_rays, pass_apply, pass_candidates, pass_prepare, ray_origins, read_returns,
+                      window_returns)
 from .platform import hidden_rays
 from .rays import RayTable, ray_table
 from .spec import LidarSpec
@@ -60,6 +62,11 @@ from .weather import clutter, total_extinction
 from .windows import CURTAIN_GAP_M, ROOM_DEPTH_M
 
 CLUTTER_ID = -1
+# Zero-length arrays: a kernel's "none" for an optional per-ray input.
+_NONE = np.zeros(0, np.float32)
+_NONE3 = np.zeros((0, 3), np.float32)
+_NONE_BOOL = np.zeros(0, bool)
+_NONE64 = np.zeros(0, np.float64)
 # A ray that goes on is cast again from just behind the surface it leaves (float32 positions out
 # to 120 m are good to 10 micrometres, so it cannot meet that surface again).
 PASS_STEP = 1e-3  # m
@@ -97,19 +104,46 @@ class LidarScan:
         return {int(i): int(c) for i, c in zip(ids, counts)}
 
 
+@dataclass(frozen=True)
+class _Sweep:
+    """What a sweep needs that depends on its spec alone, made once per spec and process."""
+
+    rays: RayTable
+    bias: np.ndarray  # (beams,) float32 per-laser range bias, m
+    gain: np.ndarray  # (beams,) float32 per-laser reading gain
+    dropout: np.ndarray  # (beams,) float32 per-laser loss rate
+    zero: np.ndarray  # (beams,) float32 per-laser share of readings of 0
+    hidden: np.ndarray  # (N,) bool: the rays the recording car hides (onboard rigs)
+    scatter: np.ndarray  # the reading's scatter quantiles (_scatter_quantiles)
+    need_exp: np.float32  # LidarSpec.threshold: range ** need_exp * need_scale, in float32
+    need_scale: np.float32
+    need0: np.float32  # the threshold at the compensation range
+
+
+@lru_cache(maxsize=16)
+def _sweep(spec: LidarSpec) -> _Sweep:
+    """The sweep constants of `spec` (the arrays are shared: callers never write into them)."""
+    f32 = np.float32
+    g = spec.range_exponent
+    return _Sweep(rays=ray_table(spec), bias=spec.laser_biases().astype(f32),
+                  gain=spec.laser_gains().astype(f32), dropout=spec.laser_dropouts().astype(f32),
+                  zero=spec.laser_zero_shares().astype(f32), hidden=hidden_rays(spec),
+                  scatter=_scatter_quantiles(spec.reading_sigma), need_exp=f32(g),
+                  need_scale=f32(0.1 / spec.dark_range ** g),
+                  need0=f32(spec.threshold(np.float64(spec.compensation_range))))
+
+
 def _origins(world: World, spec: LidarSpec, rays: RayTable, n: int) -> np.ndarray:
     """(n, 3) ray origins: with motion, one per firing column (moving with the ego vehicle)
-    shared by its lasers; else the LiDAR's position for every ray."""
+    shared by its lasers; else the LiDAR's position for every ray; plus, where the lasers fire
+    from sources of their own, the ray's source turned with the rig (kernels.ray_origins)."""
     ego_v = np.asarray(world.ego_velocity, dtype=np.float64)
-    o0 = world.lidar_pose[:3, 3]
-    if spec.motion and np.any(ego_v):
-        col_t = rays.time[:rays.columns, None]
-        origins = np.tile((o0 + col_t * ego_v).astype(np.float32), (spec.beams, 1))
-    else:
-        origins = np.empty((n, 3), np.float32)
-        origins[:] = o0
-    if rays.source is not None:  # each beam starts at its laser's source, rotated with the rig
-        origins += _world_source(spec, tuple(world.lidar_pose[:3, :3].ravel().tolist()))
+    moving = spec.motion and bool(ego_v.any())
+    source = (_world_source(spec, tuple(world.lidar_pose[:3, :3].ravel().tolist()))
+              if rays.source is not None else _NONE3)
+    origins = np.empty((n, 3), np.float32)
+    ray_origins(world.lidar_pose[:3, 3], ego_v if moving else _NONE64, rays.time[:rays.columns], source,
+                origins)
     return origins
 
 
@@ -137,12 +171,12 @@ def _pass_through(tgt: Target, spec: LidarSpec, rng: np.random.Generator, origin
     for _ in range(MAX_PASSES):
         if not len(cand):
             break
-        any_glass = any_glass or bool(tgt.mat_transmittance[tgt.tri_mat[prim[cand]]].max() > 0)
         u = rng.random(len(cand), dtype=np.float32)  # one per candidate: part of the seed's meaning
-        sel, o2, d2, start = pass_prepare(cand, u, prim, tfar, ng, origins, d_w, tgt.tri_inv_ng,
-                                          tgt.tri_mat, tgt.mat_transmittance, tgt.mat_porosity,
-                                          tgt.tri_glass, tgt.glass_planes, loss, PANE_MAX, GLASS_R0,
-                                          PASS_STEP, CABIN, CABIN_DEPTH_M)
+        sel, o2, d2, start, glass = pass_prepare(cand, u, prim, tfar, ng, origins, d_w, tgt.tri_inv_ng,
+                                                 tgt.tri_mat, tgt.mat_transmittance, tgt.mat_porosity,
+                                                 tgt.tri_glass, tgt.glass_planes, loss, PANE_MAX,
+                                                 GLASS_R0, PASS_STEP, CABIN, CABIN_DEPTH_M)
+        any_glass = any_glass or glass > 0
         if not len(sel):
             cand = sel
             break
@@ -168,24 +202,24 @@ def _through_windows(tgt: Target, origins: np.ndarray, d_w: np.ndarray, prim: np
     return (out, refl) if hits else (loss, None)
 
 
-def _detect(spec: LidarSpec, rng: np.random.Generator, beta: float, tgt: Target, rays: RayTable,
+def _detect(spec: LidarSpec, sweep: _Sweep, rng: np.random.Generator, beta: float, tgt: Target,
             origins: np.ndarray, d_w: np.ndarray, prim: np.ndarray, tfar: np.ndarray, ng: np.ndarray,
-            loss: np.ndarray | None, refl: np.ndarray | None):
-    """Steps 3-5 of the module docstring (kernels.detect_rays): the kept rays, their true range,
-    rho_eff, detection threshold, actor id and the uniform of the reading's scatter. Draws one
+            loss: np.ndarray | None, refl: np.ndarray | None, hidden: np.ndarray):
+    """Steps 3-5 of the module docstring (kernels.detect_rays): the kept rays (none of
+    `hidden`), their true range, rho_eff, detection threshold (on the true range: the echo's
+    power does not see the noise), actor id and the uniform of the reading's scatter. Draws one
     uniform per ray (drop-out, then the reading): part of the seed's meaning."""
-    e32 = np.zeros(0, np.float32)
-    need = spec.threshold(tfar)  # on the true range: the echo's power does not see the noise
+    e32 = _NONE
     ext = np.exp(np.float32(-2.0 * beta) * tfar) if beta > 0 else e32
     u = rng.random(len(prim), dtype=np.float32)
     motion = spec.motion and tgt.first_moving < tgt.n_triangles
-    lasers = _laser_tables(spec)
+    rays = sweep.rays
     return detect_rays(prim, tfar, ng, d_w, origins, tgt.tri_inv_ng, e32 if loss is None else loss,
-                       e32 if refl is None else refl, tgt.tri_refl, tgt.tri_expo, tgt.tri_actor, need,
-                       ext, u, spec.beams, rays.columns, lasers["dropout"], lasers["zero"], spec.detection,
-                       spec.min_range, spec.max_range, motion, tgt.first_moving, tgt.tri_slot,
-                       rays.time, tgt.placed_time, tgt.placed_origin, tgt.velocity, tgt.yaw_rate,
-                       spec.range_exponent)
+                       e32 if refl is None else refl, tgt.tri_refl, tgt.tri_expo, tgt.tri_actor,
+                       sweep.need_exp, sweep.need_scale, hidden, ext, u, spec.beams, rays.columns,
+                       sweep.dropout, sweep.zero, spec.detection, spec.min_range, spec.max_range, motion,
+                       tgt.first_moving, tgt.tri_slot, rays.time, tgt.placed_time, tgt.placed_origin,
+                       tgt.velocity, tgt.yaw_rate, spec.range_exponent)
 
 
 def _weather_echoes(world: World, spec: LidarSpec, rng: np.random.Generator, n: int, beta: float,
@@ -211,25 +245,25 @@ def _weather_echoes(world: World, spec: LidarSpec, rng: np.random.Generator, n: 
     return idx, full_r[idx].astype(np.float32), full_rc[idx], full_aid[idx]
 
 
-def _read(spec: LidarSpec, rng: np.random.Generator, beta: float, idx: np.ndarray, r: np.ndarray,
-          rho: np.ndarray, need: np.ndarray, v: np.ndarray, rays: RayTable):
+def _read(spec: LidarSpec, sweep: _Sweep, rng: np.random.Generator, beta: float, idx: np.ndarray,
+          r: np.ndarray, rho: np.ndarray, need: np.ndarray, v: np.ndarray):
     """Steps 5 (range noise) and 8 (reflectance) of the module docstring (kernels.read_returns):
     the (N, 4) points and each return's ring, azimuth and time. Draws one normal per return for
-    its range noise (after the uniforms: part of the seed's meaning), then, with a reading
-    scatter, one uniform per return for the clamp's own scatter draw (after the normals, so the
-    points' positions do not depend on it). `v` (kernels.detect_rays) is -1 where the laser reads
-    0, else a uniform that picks the reading's scatter from _scatter_quantiles."""
+    its range noise (after the uniforms: part of the seed's meaning; draws.standard_normal, numpy's
+    numbers), then, with a reading scatter, one uniform per return for the clamp's own scatter
+    draw (after the normals, so the points' positions do not depend on it). `v`
+    (kernels.detect_rays) is -1 where the laser reads 0, else a uniform that picks the reading's
+    scatter from _scatter_quantiles."""
     f32 = np.float32
-    ext = np.exp(f32(-2.0 * beta) * r) if beta > 0 else np.zeros(0, f32)
+    ext = np.exp(f32(-2.0 * beta) * r) if beta > 0 else _NONE
     noisy = spec.noise_sigma > 0 or spec.bias_sigma > 0
-    noise = rng.standard_normal(len(idx), dtype=f32) if noisy else np.zeros(0, f32)
+    noise = standard_normal(rng, len(idx)) if noisy else _NONE
     clamp_v = rng.random(len(idx), dtype=f32) if spec.reading_sigma > 0 else v
-    lasers = _laser_tables(spec)
-    source = rays.source if rays.source is not None else np.zeros((0, 3), f32)
-    need0 = f32(spec.threshold(np.float64(spec.compensation_range)))
-    return read_returns(idx, r, rho, need, v, clamp_v, _scatter_quantiles(spec.reading_sigma), ext,
-                        noise, f32(spec.noise_sigma), lasers["bias"], lasers["gain"],
-                        f32(spec.refl_floor_power), need0, f32(spec.refl_floor), f32(1.0 / spec.refl_step),
+    rays = sweep.rays
+    source = rays.source if rays.source is not None else _NONE3
+    return read_returns(idx, r, rho, need, v, clamp_v, sweep.scatter, ext, noise, f32(spec.noise_sigma),
+                        sweep.bias, sweep.gain, f32(spec.refl_floor_power), sweep.need0,
+                        f32(spec.refl_floor), f32(1.0 / spec.refl_step),
                         f32(round(spec.refl_max / spec.refl_step)), rays.dirs4, source, rays.ring,
                         rays.azimuth, rays.time32)
 
@@ -254,7 +288,8 @@ def scan(world: World, spec: LidarSpec, seed: int | np.random.Generator,
     Arithmetic runs in float32 (1e-5 m at 100 m) except the motion correction.
     """
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
-    rays = ray_table(spec)
+    sweep = _sweep(spec)
+    rays = sweep.rays
     tgt = target if target is not None else build_target(world, spec)
     n = len(rays.time)
 
@@ -270,18 +305,20 @@ def scan(world: World, spec: LidarSpec, seed: int | np.random.Generator,
             loss, refl = _through_windows(tgt, origins, d_w, prim, tfar, loss)
 
     beta = total_extinction(world.weather) if spec.weather else 0.0
-    idx, r, rho, need, aid, v = _detect(spec, rng, beta, tgt, rays, origins, d_w, prim, tfar, ng, loss,
-                                        refl)
+    onboard = world.rig is not None and world.rig.kind == "onboard"  # the car under the sensor hides
+    hidden = sweep.hidden if onboard else _NONE_BOOL
+    idx, r, rho, need, aid, v = _detect(spec, sweep, rng, beta, tgt, origins, d_w, prim, tfar, ng, loss,
+                                        refl, hidden)
     if spec.weather and (world.weather.fog_extinction > 0 or world.weather.rain_rate > 0):
         kept = np.full(n, -1.0, np.float32)
         kept[idx] = v
         idx, r, rho, aid = _weather_echoes(world, spec, rng, n, beta, idx, r, rho, aid)
         need = spec.threshold(r)
         v = kept[idx]  # a clutter echo takes its ray's uniform, or reads 0 if the ray had none
-    if world.rig is not None and world.rig.kind == "onboard":  # the car under the sensor hides
-        seen = ~hidden_rays(spec)[idx]
-        idx, r, rho, need, aid, v = (a[seen] for a in (idx, r, rho, need, aid, v))
-    points, ring, azimuth, time = _read(spec, rng, beta, idx, r, rho, need, v, rays)
+        if onboard:  # nor does a weather echo come back from a hidden direction
+            seen = ~hidden[idx]
+            idx, r, rho, need, aid, v = (a[seen] for a in (idx, r, rho, need, aid, v))
+    points, ring, azimuth, time = _read(spec, sweep, rng, beta, idx, r, rho, need, v)
     return LidarScan(points=points, ring=ring, azimuth=azimuth, time=time, actor_id=aid)
 
 
@@ -306,11 +343,3 @@ def _rotated(a: np.ndarray, rot: tuple[float, ...]) -> np.ndarray:
     """(N, 3) float32 rows rotated by the row-major 3 x 3 `rot`, elementwise (see `_world_dirs`)."""
     m = np.asarray(rot, dtype=np.float32).reshape(3, 3)
     return np.ascontiguousarray(a[:, 0:1] * m[:, 0] + a[:, 1:2] * m[:, 1] + a[:, 2:3] * m[:, 2])
-
-
-@lru_cache(maxsize=16)
-def _laser_tables(spec: LidarSpec) -> dict[str, np.ndarray]:
-    """The unit's per-laser values (one per ring, float32), drawn once per spec."""
-    f32 = np.float32
-    return {"bias": spec.laser_biases().astype(f32), "gain": spec.laser_gains().astype(f32),
-            "dropout": spec.laser_dropouts().astype(f32), "zero": spec.laser_zero_shares().astype(f32)}

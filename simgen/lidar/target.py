@@ -207,3 +207,19 @@ def build_target(world: World, spec: LidarSpec) -> Target:
         n_triangles=sum(counts),
         first_moving=first_moving,
     )
+
+
+class TargetCache:
+    """The targets of one world for several sensors. build_target reads two things of a spec,
+    whether the sweep models motion and how fast the head turns (they place the moving actors),
+    so sensors that agree on them (every preset: 10 Hz, with motion) share one Embree scene."""
+
+    def __init__(self, world: World):
+        self.world = world
+        self._built: dict[tuple[bool, float], Target] = {}
+
+    def get(self, spec: LidarSpec) -> Target:
+        key = (spec.motion, spec.rotation_hz)
+        if key not in self._built:
+            self._built[key] = build_target(self.world, spec)
+        return self._built[key]
