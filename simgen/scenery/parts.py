@@ -4,6 +4,7 @@ footprints actors keep off (Obstacle)."""
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -128,6 +129,13 @@ class _Meshes:
     def add(self, mat: Material, mesh: Shape | trimesh.Trimesh) -> None:
         self.by_mat.setdefault(mat, []).append(mesh)
 
+    def clear_of(self, footprints: np.ndarray) -> np.ndarray:
+        """Which footprints keep out of every keep-clear area (one vectorised test per area)."""
+        keep = np.ones(len(footprints), bool)
+        for c in self.clear:
+            keep &= ~shapely.intersects(footprints, c)
+        return keep
+
     def blocks(self, mesh: Shape | trimesh.Trimesh) -> bool:
         """Whether the mesh would stand in a keep-clear area (a sight line, the cross street)."""
         fp = footprint(mesh)
@@ -144,6 +152,40 @@ SPHERE_TOP = float(UNIT_SPHERES[0].vertices[:, 2].max())  # the coarse sphere's 
 
 def _placed(unit: Shape, scale, at) -> Shape:
     return Shape(unit.vertices * np.asarray(scale) + np.asarray(at), unit.faces)
+
+
+def uniform(bounds: tuple[float, float], u: np.ndarray) -> np.ndarray:
+    """rng.uniform(*bounds) from the stream's next doubles u (rng.random): numpy's own lo + (hi -
+    lo) u, so draws taken at once have the bits and the order of draws taken one at a time."""
+    lo, hi = bounds
+    return lo + (hi - lo) * u
+
+
+def placed_many(unit: Shape, scale: np.ndarray, at: np.ndarray) -> Shape:
+    """_placed for (n, 3) scales and places at once, as one Shape (the same products and sums,
+    faces offset as merging the n Shapes offsets them): one numpy call for hundreds of shrubs."""
+    n, nv = len(at), len(unit.vertices)
+    v = unit.vertices * scale[:, None, :] + at[:, None, :]
+    f = unit.faces + nv * np.arange(n)[:, None, None]
+    return Shape(v.reshape(-1, 3), f.reshape(-1, 3))
+
+
+@functools.cache
+def _unit_ring(quad_segs: int) -> np.ndarray:
+    """GEOS's ring of a point buffered by 1 at the origin: the cosines and sines it uses (snapped
+    to 0 next to the axes), its start (1, 0) first and last."""
+    return shapely.get_coordinates(shapely.Point(0.0, 0.0).buffer(1.0, quad_segs))
+
+
+def discs(x: np.ndarray, y: np.ndarray, r: np.ndarray, quad_segs: int) -> np.ndarray:
+    """shapely.Point(x, y).buffer(r, quad_segs) for arrays of centres and radii: GEOS's own ring
+    (centre plus radius times its cosine and sine) in one vectorised call instead of a buffer
+    each, which cost most of a frame's frontage."""
+    ring = _unit_ring(quad_segs)
+    x, y, r = (np.asarray(a, dtype=float)[:, None] for a in np.broadcast_arrays(x, y, r))
+    xs, ys = x + r * ring[:, 0], y + r * ring[:, 1]
+    ys[:, [0, -1]] = y  # GEOS starts (and closes) the ring at (x + r, y) itself
+    return shapely.polygons(np.stack([xs, ys], axis=-1))
 
 
 def moved(m: Shape, at) -> Shape:
