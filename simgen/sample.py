@@ -59,11 +59,12 @@ def _footprint(pose: np.ndarray, l: float, w: float, margin: float = MARGIN) -> 
 
 
 class _Placer:
-    """Keeps the footprints placed so far and accepts only non-overlapping new ones. Each test is
-    one vectorised GEOS call over all footprints (the same predicate as one call per pair)."""
+    """Keeps the footprints placed so far and accepts only non-overlapping new ones. The static
+    obstacles are queried through an STRtree (the same intersects predicate, tested only where
+    the envelopes meet), the few placed footprints in one vectorised GEOS call."""
 
     def __init__(self, obstacles: list[Obstacle], reserved: list[shapely.Polygon]):
-        self.obstacles = np.array([o.polygon for o in obstacles], dtype=object)
+        self.tree = shapely.STRtree([o.polygon for o in obstacles])
         self.bases = np.array([o.base for o in obstacles], float)
         self.taken = list(reserved)
 
@@ -73,8 +74,8 @@ class _Placer:
         shapely.prepare(fp)
         if self.taken and shapely.intersects(fp, self.taken).any():
             return False
-        below = self.bases < pose[2, 3] + h
-        if below.any() and shapely.intersects(fp, self.obstacles[below]).any():
+        hits = self.tree.query(fp, predicate="intersects")
+        if (self.bases[hits] < pose[2, 3] + h).any():
             return False
         self.taken.append(fp)
         return True
