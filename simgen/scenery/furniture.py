@@ -10,7 +10,7 @@ import shapely
 import trimesh
 
 from ..materials import METAL, SIGN_BLUE, SIGN_RED, SIGN_WHITE, SIGN_YELLOW, TRIM, paint_material, signal_lens
-from ..meshes import Shape, bicycle, box, extrude
+from ..meshes import Shape, _box, _extrude, bicycle
 from ..road import RoadLayout
 from ..world import Material, Part, fit_parts
 from .parts import Obstacle, UNIT_CYLINDER, _Meshes, _placed, footprint
@@ -90,9 +90,9 @@ def _regular(n: int, r: float, phase_deg: float) -> np.ndarray:
     return np.c_[r * np.cos(a), r * np.sin(a)]
 
 
-def _plate(poly: np.ndarray, x0: float, x1: float, z: float) -> trimesh.Trimesh:
+def _plate(poly: np.ndarray, x0: float, x1: float, z: float) -> Shape:
     """A flat plate of a convex outline (y, z about height z), facing +x from x0 to x1."""
-    return extrude(poly + [0.0, z], 0, x0, x1)
+    return _extrude(poly + [0.0, z], 0, x0, x1)
 
 
 def _column(x: float, y: float, r: float, z0: float, z1: float) -> Shape:
@@ -151,7 +151,7 @@ class _Furnisher:
 def _extent(parts: list[tuple[Material, Shape]]) -> tuple[shapely.Polygon, float]:
     """A piece's footprint (the convex hull of its vertices seen from above) and its top."""
     v = np.concatenate([m.vertices for _, m in parts])
-    return shapely.convex_hull(shapely.MultiPoint(v[:, :2])), float(v[:, 2].max())
+    return shapely.convex_hull(shapely.multipoints(v[:, :2])), float(v[:, 2].max())
 
 
 def _sign(f: _Furnisher, side: int, s: float, kind: str) -> None:
@@ -167,7 +167,7 @@ def _sign(f: _Furnisher, side: int, s: float, kind: str) -> None:
     if inner is not None:
         local.append((inner_mat, _plate(_regular(*inner), 0.003, 0.006, z)))
     parts = [(mat, _posed(m, T)) for mat, m in local]
-    plate = shapely.convex_hull(shapely.MultiPoint(np.concatenate([m.vertices[:, :2] for _, m in parts[1:]])))
+    plate = shapely.convex_hull(shapely.multipoints(np.concatenate([m.vertices[:, :2] for _, m in parts[1:]])))
     f.add(parts, [Obstacle(footprint(parts[0][1]).buffer(0.1)),
                   Obstacle(plate, base=ch + SIGN_LOWER_EDGE)])
 
@@ -177,14 +177,14 @@ def _signal(f: _Furnisher, T: np.ndarray, lit: str) -> None:
     ch, m = f.road.curb_height, SIGNAL_MAST_R
     z0 = ch + SIGNAL_LOWER_EDGE
     local = [(METAL, _column(0.0, 0.0, m, ch, z0 + 1.05)),
-             (TRIM, box(m + 0.20, m + 0.215, -0.275, 0.275, z0, z0 + 1.05)),
-             (TRIM, box(m, m + 0.25, -0.15, 0.15, z0 + 0.10, z0 + 0.95))]
+             (TRIM, _box(m + 0.20, m + 0.215, -0.275, 0.275, z0, z0 + 1.05)),
+             (TRIM, _box(m, m + 0.25, -0.15, 0.15, z0 + 0.10, z0 + 0.95))]
     for k, phase in enumerate(SIGNAL_PHASES):  # red on top
         colour = LENSES[phase][0 if phase == lit else 1]
         local.append((signal_lens(colour), _plate(_regular(8, 0.10, 22.5), m + 0.25, m + 0.265,
                                                    z0 + 0.795 - 0.27 * k)))
     parts = [(mat, _posed(mesh, T)) for mat, mesh in local]
-    head = shapely.convex_hull(shapely.MultiPoint(np.concatenate([x.vertices[:, :2] for _, x in parts[1:]])))
+    head = shapely.convex_hull(shapely.multipoints(np.concatenate([x.vertices[:, :2] for _, x in parts[1:]])))
     f.add(parts, [Obstacle(footprint(parts[0][1]).buffer(0.1)), Obstacle(head, base=z0)], corner=True)
 
 
@@ -233,8 +233,8 @@ def _stands(f: _Furnisher, side: int, s: float, n: int, bikes: np.random.Generat
     parts = []
     for k in range(n):
         T = f.pose(side, s + k * STAND_PITCH, SIDE_CLEARANCE + half, np.pi / 2)
-        for m in (box(-half, -half + 2 * r, -r, r, ch, ch + h), box(half - 2 * r, half, -r, r, ch, ch + h),
-                  box(-half, half, -r, r, ch + h - 2 * r, ch + h)):
+        for m in (_box(-half, -half + 2 * r, -r, r, ch, ch + h), _box(half - 2 * r, half, -r, r, ch, ch + h),
+                  _box(-half, half, -r, r, ch + h - 2 * r, ch + h)):
             parts.append((METAL, _posed(m, T)))
     parked = []  # (stand, side of its bar, heading) of each bicycle
     for k in range(n):

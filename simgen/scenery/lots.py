@@ -48,10 +48,11 @@ def _quad_polygon(road: RoadLayout, s0: float, s1: float, d0: float, d1: float) 
 
 
 def _add_building(out: _Meshes, rng: np.random.Generator, m: Shape) -> None:
-    if out.blocks(m):
+    fp = footprint(m)
+    if out.blocked(fp):
         return
     out.add(Material("facade", FACADES[int(rng.integers(len(FACADES)))], FACADE_REFLECTIVITY), m)
-    out.obstacles.append(Obstacle(footprint(m)))
+    out.obstacles.append(Obstacle(fp))
 
 
 def _trees(out: _Meshes, xy: np.ndarray, z: float, height, r, base, trunk_r: float) -> None:
@@ -134,9 +135,10 @@ def _boundary_style(kind: str, rng: np.random.Generator) -> tuple[float, float, 
 
 
 def _add_solid(out: _Meshes, mat: Material, m: Shape) -> None:
-    if not out.blocks(m):
+    fp = footprint(m)
+    if not out.blocked(fp):
         out.add(mat, m)
-        out.obstacles.append(Obstacle(footprint(m)))
+        out.obstacles.append(Obstacle(fp))
 
 
 def _house_row(road: RoadLayout, side: int, s0: float, s1: float, q: float,

@@ -63,7 +63,7 @@ def oriented_box(road: RoadLayout, s: float, d: float, z: float, l: float, w: fl
 
 
 def footprint(m: Shape | trimesh.Trimesh) -> shapely.Polygon:
-    return shapely.convex_hull(shapely.MultiPoint(m.vertices[:, :2]))
+    return shapely.convex_hull(shapely.multipoints(np.asarray(m.vertices)[:, :2]))
 
 
 def plain(m: trimesh.Trimesh) -> Shape:
@@ -138,7 +138,10 @@ class _Meshes:
 
     def blocks(self, mesh: Shape | trimesh.Trimesh) -> bool:
         """Whether the mesh would stand in a keep-clear area (a sight line, the cross street)."""
-        fp = footprint(mesh)
+        return self.blocked(footprint(mesh))
+
+    def blocked(self, fp: shapely.Polygon) -> bool:
+        """Whether a footprint reaches into a keep-clear area."""
         return any(fp.intersects(c) for c in self.clear)
 
 
