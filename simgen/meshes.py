@@ -19,6 +19,7 @@ from scipy.spatial import ConvexHull
 # The vehicle materials at 905 nm and their sources: simgen.materials.
 from .materials import (FRAME, GLASS, HEADLIGHT, PLATE, RIM, TAILLIGHT, TRIM, TYRE, paint_material,
                         skin_reflectivity, textile_reflectivity)
+from .facets import cross
 from .usermesh import build_user_parts
 from .world import Material, Part, fit_parts
 
@@ -187,12 +188,15 @@ def box(x0, x1, y0, y1, z0, z1) -> trimesh.Trimesh:
     return _trimesh(_box(x0, x1, y0, y1, z0, z1))
 
 
+# Each corner of box() as indices into its sorted bounds (x0, x1, y0, y1, z0, z1).
+_BOX_CORNERS = np.array([[0, 2, 4], [1, 2, 4], [1, 3, 4], [0, 3, 4], [0, 2, 5], [1, 2, 5], [1, 3, 5], [0, 3, 5]])
+
+
 def _box(x0, x1, y0, y1, z0, z1) -> Shape:
-    """box() as a Shape."""
-    (x0, x1), (y0, y1), (z0, z1) = sorted((x0, x1)), sorted((y0, y1)), sorted((z0, z1))
-    v = np.array([[x0, y0, z0], [x1, y0, z0], [x1, y1, z0], [x0, y1, z0],
-                  [x0, y0, z1], [x1, y0, z1], [x1, y1, z1], [x0, y1, z1]], dtype=float)
-    return Shape(v, _BOX_FACES)
+    """box() as a Shape: its corners gathered from the bounds in one call (a nested list of 24
+    floats costs numpy several times more)."""
+    bounds = np.array([*sorted((x0, x1)), *sorted((y0, y1)), *sorted((z0, z1))], dtype=float)
+    return Shape(bounds[_BOX_CORNERS], _BOX_FACES)
 
 
 def prism_xz(profile, y0, y1) -> Shape:
@@ -215,9 +219,16 @@ def _looks_inward(v: np.ndarray, face: np.ndarray) -> bool:
     """Whether `face` turns towards the solid's vertex mean: the sign of det [b - a, c - a,
     a - mean]. The triple product in plain floats decides (np.linalg.det costs 10 us); only
     where it is too close to 0 for its sign to be sure does np.linalg.det, as before, decide.
-    Differences in plain floats too: numpy's per call overhead costs more than these 3-vectors."""
-    (a0, a1, a2), (b0, b1, b2), (c0, c1, c2) = v[face].tolist()
-    m0, m1, m2 = (np.add.reduce(v, 0) / len(v)).tolist()  # v.mean(axis=0), without its wrapper
+    The mean too in plain floats: numpy's v.mean(axis=0) adds the rows in turn, as this does,
+    and its per call overhead costs more than these few vertices."""
+    rows = v.tolist()
+    i, j, k = face.tolist()
+    (a0, a1, a2), (b0, b1, b2), (c0, c1, c2) = rows[i], rows[j], rows[k]
+    m0, m1, m2 = rows[0]
+    for x0, x1, x2 in rows[1:]:
+        m0, m1, m2 = m0 + x0, m1 + x1, m2 + x2
+    n = len(rows)
+    m0, m1, m2 = m0 / n, m1 / n, m2 / n
     u0, u1, u2, w0, w1, w2 = b0 - a0, b1 - a1, b2 - a2, c0 - a0, c1 - a1, c2 - a2
     z0, z1, z2 = a0 - m0, a1 - m1, a2 - m2
     det = u0 * (w1 * z2 - w2 * z1) - u1 * (w0 * z2 - w2 * z0) + u2 * (w0 * z1 - w1 * z0)
@@ -452,7 +463,7 @@ def _rear_pillars(quad: np.ndarray, share: float) -> list[Shape]:
     above them, counter-clockwise seen from behind), `share` of its width each, on the face's
     plane and standing 12 mm proud of the glass: a convex slab each, as every part is."""
     b0, b1, t1, t0 = quad
-    n = np.cross(b1 - b0, t0 - b0)
+    n = cross(b1 - b0, t0 - b0)
     n /= np.linalg.norm(n)
     bands = [np.array([b0, b0 + share * (b1 - b0), t0 + share * (t1 - t0), t0]),
              np.array([b1 - share * (b1 - b0), b1, t1, t1 - share * (t1 - t0)])]

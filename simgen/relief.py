@@ -16,6 +16,7 @@ import numba
 import numpy as np
 import trimesh
 
+from .facets import cross
 from .road import RoadLayout
 from .world import Actor, Part
 
@@ -181,7 +182,7 @@ def drape_parts(parts: list[Part], road: RoadLayout) -> list[Part]:
 
 def _tilt_to(normal: np.ndarray) -> np.ndarray:
     """The smallest rotation taking world up (0, 0, 1) to `normal` (Rodrigues)."""
-    axis = np.cross([0.0, 0.0, 1.0], normal)
+    axis = cross([0.0, 0.0, 1.0], normal)
     s, c = np.linalg.norm(axis), normal[2]
     if s < 1e-12:
         return np.eye(3)
