@@ -12,6 +12,7 @@ import functools
 from dataclasses import dataclass
 from typing import NamedTuple
 
+import numba
 import numpy as np
 import trimesh
 from scipy.spatial import ConvexHull
@@ -165,18 +166,40 @@ def _trimesh(shape: Shape) -> trimesh.Trimesh:
 def hull(points) -> Shape:
     """Closed convex hull of a point set, faces wound outward: watertight by construction.
 
-    qhull directly (trimesh's wrapper re-processes the mesh, 5x slower for these small hulls);
-    np.cross's and np.unique's results written out, as their overhead costs more here."""
+    qhull directly (trimesh's wrapper re-processes the mesh, 5x slower for these small hulls),
+    its faces turned and renumbered by a compiled loop (_outward)."""
     pts = np.asarray(points, dtype=float)
-    faces = ConvexHull(pts).simplices
-    used = np.zeros(len(pts), bool)
-    used[faces] = True
-    tri = pts[faces]
-    (u0, u1, u2), (w0, w1, w2) = (tri[:, 1] - tri[:, 0]).T, (tri[:, 2] - tri[:, 0]).T
-    normal = np.column_stack((u1 * w2 - u2 * w1, u2 * w0 - u0 * w2, u0 * w1 - u1 * w0))
-    inward = np.einsum("ij,ij->i", normal, tri.mean(axis=1) - pts[used].mean(axis=0)) < 0
-    faces = np.where(inward[:, None], faces[:, ::-1], faces)
-    return Shape(pts[used], (np.cumsum(used) - 1)[faces])
+    return Shape(*_outward(pts, ConvexHull(pts).simplices))
+
+
+@numba.njit(cache=True, nogil=True)
+def _outward(pts: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The hull's points and its faces turned outward, renumbered onto those points: a face
+    turns where its normal (np.cross's products and differences) points away from the way from
+    the points' mean to the face's centre. The means add in numpy's order (0, then each in turn)
+    and the dot product in np.einsum's ((x z) then y), so every face turns as numpy turned it."""
+    n = pts.shape[0]
+    used = np.zeros(n, np.bool_)
+    for f in faces.ravel():
+        used[f] = True
+    rank = np.cumsum(used) - 1
+    mean = np.zeros(3)
+    for i in range(n):
+        if used[i]:
+            for k in range(3):
+                mean[k] += pts[i, k]
+    mean /= rank[-1] + 1
+    out = np.empty((faces.shape[0], 3), np.int64)
+    for t in range(faces.shape[0]):
+        a, b, c = pts[faces[t, 0]], pts[faces[t, 1]], pts[faces[t, 2]]
+        u0, u1, u2, w0, w1, w2 = b[0] - a[0], b[1] - a[1], b[2] - a[2], c[0] - a[0], c[1] - a[1], c[2] - a[2]
+        d0 = (0.0 + a[0] + b[0] + c[0]) / 3 - mean[0]
+        d1 = (0.0 + a[1] + b[1] + c[1]) / 3 - mean[1]
+        d2 = (0.0 + a[2] + b[2] + c[2]) / 3 - mean[2]
+        dot = (u1 * w2 - u2 * w1) * d0 + (u0 * w1 - u1 * w0) * d2 + (u2 * w0 - u0 * w2) * d1
+        for j in range(3):
+            out[t, j] = rank[faces[t, 2 - j] if dot < 0 else faces[t, j]]
+    return pts[used], out
 
 
 _BOX_FACES = np.array([[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7], [0, 1, 5], [0, 5, 4],
@@ -219,13 +242,13 @@ def _looks_inward(v: np.ndarray, face: np.ndarray) -> bool:
     """Whether `face` turns towards the solid's vertex mean: the sign of det [b - a, c - a,
     a - mean]. The triple product in plain floats decides (np.linalg.det costs 10 us); only
     where it is too close to 0 for its sign to be sure does np.linalg.det, as before, decide.
-    The mean too in plain floats: numpy's v.mean(axis=0) adds the rows in turn, as this does,
-    and its per call overhead costs more than these few vertices."""
+    The mean too in plain floats: numpy's v.mean(axis=0) adds the rows in turn to 0, as this
+    does, and its per call overhead costs more than these few vertices."""
     rows = v.tolist()
     i, j, k = face.tolist()
     (a0, a1, a2), (b0, b1, b2), (c0, c1, c2) = rows[i], rows[j], rows[k]
-    m0, m1, m2 = rows[0]
-    for x0, x1, x2 in rows[1:]:
+    m0 = m1 = m2 = 0.0
+    for x0, x1, x2 in rows:
         m0, m1, m2 = m0 + x0, m1 + x1, m2 + x2
     n = len(rows)
     m0, m1, m2 = m0 / n, m1 / n, m2 / n

@@ -144,6 +144,8 @@ class RoadLayout:
 
     def xy(self, s, d) -> np.ndarray:
         """World (x, y) of road coordinates (s, d), broadcasting."""
+        if np.ndim(s) == 0 and np.ndim(d) == 0:
+            return self._point_xy(float(s), float(d))
         s, d = np.broadcast_arrays(np.asarray(s, dtype=float), np.asarray(d, dtype=float))
         k = self.curvature
         psi = k * s
@@ -152,6 +154,15 @@ class RoadLayout:
         else:
             cx, cy = np.sin(psi) / k, (1.0 - np.cos(psi)) / k
         return np.stack([cx - d * np.sin(psi), cy + d * np.cos(psi)], axis=-1)
+
+    def _point_xy(self, s: float, d: float) -> np.ndarray:
+        """xy() of one point: the same operations on scalars, without the broadcasting set-up that
+        costs several times their arithmetic (a frame asks for thousands of single points)."""
+        k = self.curvature
+        psi = k * s
+        sin, cos = np.sin(psi), np.cos(psi)
+        cx, cy = (s, 0.0) if k == 0.0 else (sin / k, (1.0 - cos) / k)
+        return np.array([cx - d * sin, cy + d * cos])
 
     def s_of(self, x, y) -> np.ndarray:
         """Arc length s of the centre-line point nearest to world (x, y), broadcasting: on a
