@@ -31,15 +31,28 @@ from .street import carriageway, markings, poles
 def _qbox(road: RoadLayout, side: int, s0: float, s1: float, q0: float, q1: float, z: float,
           h: float) -> Shape:
     """A box over [s0, s1] along the road and q0..q1 metres behind the sidewalk of `side`, its
-    long axes along the road's heading at the box's centre."""
+    long axes along the road's heading at the box's centre: the unit box scaled, turned and
+    moved, each distinct corner coordinate computed once in plain floats and gathered (numpy's
+    per call cost was most of a box's)."""
     s, d = (s0 + s1) / 2, _outer(road, side) + side * (q0 + q1) / 2
-    psi = float(road.heading(s))
+    psi = road.curvature * s
     c, sn = np.cos(psi), np.sin(psi)
-    local = UNIT_BOX.vertices * [s1 - s0, q1 - q0, h]
+    (lx0, lx1), (ly0, ly1), (lz0, lz1) = ((u0 * e, u1 * e) for (u0, u1), e in
+                                          zip(_UNIT_BOX_VALUES, (s1 - s0, q1 - q0, h)))
     x, y = road.xy(s, d)
-    v = np.column_stack((x + c * local[:, 0] - sn * local[:, 1], y + sn * local[:, 0] + c * local[:, 1],
-                         local[:, 2] + z + h / 2))
-    return Shape(v, UNIT_BOX.faces)
+    corners = np.array([x + c * lx0 - sn * ly0, x + c * lx0 - sn * ly1, x + c * lx1 - sn * ly0,
+                        x + c * lx1 - sn * ly1, y + sn * lx0 + c * ly0, y + sn * lx0 + c * ly1,
+                        y + sn * lx1 + c * ly0, y + sn * lx1 + c * ly1, lz0 + z + h / 2, lz1 + z + h / 2])
+    return Shape(corners[_UNIT_BOX_GATHER], UNIT_BOX.faces)
+
+
+# UNIT_BOX's two values along each axis, and each vertex's (x, y, z) as indices into the corner
+# values _qbox computes: x at 2 ix + iy, y at 4 + 2 ix + iy, z at 8 + iz.
+_UNIT_BOX_VALUES = [tuple(np.unique(axis).tolist()) for axis in UNIT_BOX.vertices.T]
+_UNIT_BOX_GATHER = np.column_stack([
+    2 * (UNIT_BOX.vertices[:, 0] > _UNIT_BOX_VALUES[0][0]) + (UNIT_BOX.vertices[:, 1] > _UNIT_BOX_VALUES[1][0]),
+    4 + 2 * (UNIT_BOX.vertices[:, 0] > _UNIT_BOX_VALUES[0][0]) + (UNIT_BOX.vertices[:, 1] > _UNIT_BOX_VALUES[1][0]),
+    8 + (UNIT_BOX.vertices[:, 2] > _UNIT_BOX_VALUES[2][0])])
 
 
 def _quad_polygon(road: RoadLayout, s0: float, s1: float, d0: float, d1: float) -> shapely.Polygon:

@@ -39,16 +39,19 @@ def strip(road: RoadLayout, s: np.ndarray, d0: float, d1: float, z0: float, z1: 
     """A quad strip between lateral offsets d0 < d1 along s; horizontal at z0, or vertical
     from z0 to z1 (d0 == d1). Faces wound to face up (horizontal) or towards +d (vertical)."""
     n = len(s)
-    if z1 is None:
-        a = np.column_stack((road.xy(s, d0), np.full(n, z0)))
-        b = np.column_stack((road.xy(s, d1), np.full(n, z0)))
-    else:
-        a = np.column_stack((road.xy(s, d0), np.full(n, z1)))
-        b = np.column_stack((road.xy(s, d0), np.full(n, z0)))
-    v = np.concatenate([a, b])
+    v = np.empty((2 * n, 3))
+    v[:n, :2], v[n:, :2] = road.xy(s, d0), road.xy(s, d0 if z1 is not None else d1)
+    v[:n, 2], v[n:, 2] = (z0, z0) if z1 is None else (z1, z0)
+    return Shape(v, _strip_faces(n))
+
+
+@functools.cache
+def _strip_faces(n: int) -> np.ndarray:
+    """The faces of a strip of n samples a side (shared by every strip of that length: read-only)."""
     i = np.arange(n - 1)
     faces = np.concatenate([np.column_stack((i, i + 1, i + n)), np.column_stack((i + 1, i + n + 1, i + n))])
-    return Shape(v, faces)
+    faces.flags.writeable = False
+    return faces
 
 
 def flip(m: Shape) -> Shape:
