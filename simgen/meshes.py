@@ -240,25 +240,31 @@ def _solid(v, faces) -> Shape:
 
 def _looks_inward(v: np.ndarray, face: np.ndarray) -> bool:
     """Whether `face` turns towards the solid's vertex mean: the sign of det [b - a, c - a,
-    a - mean]. The triple product in plain floats decides (np.linalg.det costs 10 us); only
-    where it is too close to 0 for its sign to be sure does np.linalg.det, as before, decide.
-    The mean too in plain floats: numpy's v.mean(axis=0) adds the rows in turn to 0, as this
-    does, and its per call overhead costs more than these few vertices."""
-    rows = v.tolist()
-    i, j, k = face.tolist()
-    (a0, a1, a2), (b0, b1, b2), (c0, c1, c2) = rows[i], rows[j], rows[k]
+    a - mean]. The triple product (compiled, _triple) decides; only where it is too close to 0
+    for its sign to be sure does np.linalg.det, as before, decide."""
+    det, size, rows = _triple(v, face[0], face[1], face[2])
+    if abs(det) > 1e-9 * size:
+        return det < 0
+    return bool(np.linalg.det(rows) < 0)
+
+
+@numba.njit(cache=True, nogil=True)
+def _triple(v: np.ndarray, i: int, j: int, k: int) -> tuple[float, float, np.ndarray]:
+    """det [b - a, c - a, a - mean] of the face (i, j, k) in plain floats, the size its error
+    scales with, and the three rows. The mean adds the vertices in turn to 0, as numpy's
+    v.mean(axis=0) does."""
     m0 = m1 = m2 = 0.0
-    for x0, x1, x2 in rows:
-        m0, m1, m2 = m0 + x0, m1 + x1, m2 + x2
-    n = len(rows)
+    for r in range(v.shape[0]):
+        m0, m1, m2 = m0 + v[r, 0], m1 + v[r, 1], m2 + v[r, 2]
+    n = v.shape[0]
     m0, m1, m2 = m0 / n, m1 / n, m2 / n
-    u0, u1, u2, w0, w1, w2 = b0 - a0, b1 - a1, b2 - a2, c0 - a0, c1 - a1, c2 - a2
+    a0, a1, a2 = v[i, 0], v[i, 1], v[i, 2]
+    u0, u1, u2 = v[j, 0] - a0, v[j, 1] - a1, v[j, 2] - a2
+    w0, w1, w2 = v[k, 0] - a0, v[k, 1] - a1, v[k, 2] - a2
     z0, z1, z2 = a0 - m0, a1 - m1, a2 - m2
     det = u0 * (w1 * z2 - w2 * z1) - u1 * (w0 * z2 - w2 * z0) + u2 * (w0 * z1 - w1 * z0)
     size = (abs(u0) + abs(u1) + abs(u2)) * (abs(w0) + abs(w1) + abs(w2)) * (abs(z0) + abs(z1) + abs(z2))
-    if abs(det) > 1e-9 * size:
-        return det < 0
-    return bool(np.linalg.det(np.array([[u0, u1, u2], [w0, w1, w2], [z0, z1, z2]])) < 0)
+    return det, size, np.array([[u0, u1, u2], [w0, w1, w2], [z0, z1, z2]])
 
 
 def hexahedron(v) -> Shape:
@@ -302,12 +308,21 @@ def _circle(sections: int) -> tuple[np.ndarray, np.ndarray]:
 
 def _cylinder_y(x, y, z, rx, rz, width, sections) -> Shape:
     """A closed elliptic cylinder, axis along y, centred at (x, y, z)."""
-    cos, sin = _circle(sections)
-    v = np.empty((2 * sections, 3))
-    v[:sections, 0] = v[sections:, 0] = x + rx * cos
-    v[:sections, 2] = v[sections:, 2] = z + rz * sin
-    v[:sections, 1], v[sections:, 1] = y - width / 2, y + width / 2
-    return _solid(v, _prism_faces(sections))
+    return _solid(_cylinder_vertices(x, y, z, rx, rz, width, *_circle(sections)), _prism_faces(sections))
+
+
+@numba.njit(cache=True, nogil=True)
+def _cylinder_vertices(x: float, y: float, z: float, rx: float, rz: float, width: float, cos: np.ndarray,
+                       sin: np.ndarray) -> np.ndarray:
+    """_cylinder_y's rings at y -+ width / 2 (x + rx cos, z + rz sin round each), compiled: a
+    frame's hundreds of wheels and rims paid numpy's per call cost several times over."""
+    n = len(cos)
+    v = np.empty((2 * n, 3))
+    for i in range(n):
+        v[i, 0] = v[n + i, 0] = x + rx * cos[i]
+        v[i, 1], v[n + i, 1] = y - width / 2, y + width / 2
+        v[i, 2] = v[n + i, 2] = z + rz * sin[i]
+    return v
 
 
 def wheel(x, y, r, width, sections=14, rx=None) -> Shape:
