@@ -143,17 +143,19 @@ class RoadLayout:
         return self.curvature * np.asarray(s, dtype=float)
 
     def xy(self, s, d) -> np.ndarray:
-        """World (x, y) of road coordinates (s, d), broadcasting."""
+        """World (x, y) of road coordinates (s, d), broadcasting. Elementwise, so the arrays
+        broadcast in the arithmetic itself (np.broadcast_arrays and np.stack cost more than it)."""
         if np.ndim(s) == 0 and np.ndim(d) == 0:
             return self._point_xy(float(s), float(d))
-        s, d = np.broadcast_arrays(np.asarray(s, dtype=float), np.asarray(d, dtype=float))
+        s, d = np.asarray(s, dtype=float), np.asarray(d, dtype=float)
         k = self.curvature
         psi = k * s
-        if k == 0.0:
-            cx, cy = s, np.zeros_like(s)
-        else:
-            cx, cy = np.sin(psi) / k, (1.0 - np.cos(psi)) / k
-        return np.stack([cx - d * np.sin(psi), cy + d * np.cos(psi)], axis=-1)
+        sin, cos = np.sin(psi), np.cos(psi)
+        cx, cy = (s, 0.0) if k == 0.0 else (sin / k, (1.0 - cos) / k)
+        out = np.empty(np.broadcast_shapes(s.shape, d.shape) + (2,))
+        out[..., 0] = cx - d * sin
+        out[..., 1] = cy + d * cos
+        return out
 
     def _point_xy(self, s: float, d: float) -> np.ndarray:
         """xy() of one point: the same operations on scalars, without the broadcasting set-up that
