@@ -197,9 +197,9 @@ def drape_actor(actor: Actor, road: RoadLayout) -> None:
     if road.flat:
         return
     x, y = actor.pose[0, 3], actor.pose[1, 3]
-    n = road.surface_normal(x, y)
+    z, n = road.surface(x, y)
     pose = actor.pose.copy()
-    pose[2, 3] += float(road.height(x, y))
+    pose[2, 3] += z
     if actor.cls in TILTED:
         pose[:3, :3] = _tilt_to(n) @ pose[:3, :3]
     actor.pose = pose

@@ -203,10 +203,22 @@ class RoadLayout:
         return across if along is None else along + across
 
     def surface_normal(self, x: float, y: float) -> np.ndarray:
-        """Unit upward normal of the road surface z = height(x, y) at one point: the grade along
-        times the gradient of s, plus the slope across times the gradient of d."""
+        """Unit upward normal of the road surface z = height(x, y) at one point."""
+        return self.surface(x, y)[1]
+
+    def surface(self, x: float, y: float) -> tuple[float, np.ndarray]:
+        """height() and surface_normal() at one point, from one evaluation of the profile and
+        the crown (for one point, their numpy calls cost more than their arithmetic)."""
         if self.flat:
-            return np.array([0.0, 0.0, 1.0])
+            return 0.0, np.array([0.0, 0.0, 1.0])
+        along, g = self.profile.height_and_grade(self.s_of(x, y)) if self.profile else (None, 0.0)
+        across, c = self._crown_height_and_slope(self.d_of(x, y)) if self.crown else (None, 0.0)
+        z = along if across is None else (across if along is None else along + across)
+        return float(z), self._normal(x, y, float(g), float(c))
+
+    def _normal(self, x: float, y: float, g: float, c: float) -> np.ndarray:
+        """The unit upward normal where the grade along is g and the slope across c: g times the
+        gradient of s plus c times the gradient of d."""
         k = self.curvature
         if k == 0.0:
             grad_s, grad_d = np.array([1.0, 0.0]), np.array([0.0, 1.0])
@@ -214,8 +226,6 @@ class RoadLayout:
             a, b = k * x, 1.0 - k * y  # ds/dx, ds/dy of s = atan2(a, b) / k
             grad_s = np.array([b, a]) / (a * a + b * b)
             grad_d = -np.sign(k) * np.array([x, y - 1.0 / k]) / np.hypot(x, y - 1.0 / k)
-        g = float(self.profile.height_and_grade(self.s_of(x, y))[1]) if self.profile else 0.0
-        c = float(self._crown_height_and_slope(self.d_of(x, y))[1]) if self.crown else 0.0
         gx, gy = g * grad_s + c * grad_d
         n = np.array([-gx, -gy, 1.0])
         return n / np.linalg.norm(n)
@@ -248,7 +258,4 @@ class RoadLayout:
         x, y = self.xy(s, d)
         yaw = float(self.heading(s)) + yaw_offset
         c, sn = np.cos(yaw), np.sin(yaw)
-        T = np.eye(4)
-        T[:3, :3] = [[c, -sn, 0.0], [sn, c, 0.0], [0.0, 0.0, 1.0]]
-        T[:3, 3] = [x, y, z]
-        return T
+        return np.array([[c, -sn, 0.0, x], [sn, c, 0.0, y], [0.0, 0.0, 1.0, z], [0.0, 0.0, 0.0, 1.0]], dtype=float)

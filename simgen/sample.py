@@ -52,10 +52,10 @@ def _plain(value):
 
 
 def _footprint(pose: np.ndarray, l: float, w: float, margin: float = MARGIN) -> shapely.Polygon:
-    c = np.array([[l / 2, w / 2], [-l / 2, w / 2], [-l / 2, -w / 2], [l / 2, -w / 2]])
-    c += np.sign(c) * margin
-    xy = c @ pose[:2, :2].T + pose[:2, 3]
-    return shapely.Polygon(xy)
+    """The pose's l x w rectangle grown by `margin` each side, in plan view."""
+    hl, hw = l / 2 + margin, w / 2 + margin
+    c = np.array([[hl, hw], [-hl, hw], [-hl, -hw], [hl, -hw]])
+    return shapely.polygons(c @ pose[:2, :2].T + pose[:2, 3])
 
 
 class _Placer:
