@@ -26,6 +26,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 PARKING_WIDTH = 2.3
+_SCALARS = (int, float, np.number)  # one point's coordinates, as RoadLayout.xy takes them
 
 
 @dataclass(frozen=True)
@@ -145,7 +146,7 @@ class RoadLayout:
     def xy(self, s, d) -> np.ndarray:
         """World (x, y) of road coordinates (s, d), broadcasting. Elementwise, so the arrays
         broadcast in the arithmetic itself (np.broadcast_arrays and np.stack cost more than it)."""
-        if np.ndim(s) == 0 and np.ndim(d) == 0:
+        if isinstance(s, _SCALARS) and isinstance(d, _SCALARS):
             return self._point_xy(float(s), float(d))
         s, d = np.asarray(s, dtype=float), np.asarray(d, dtype=float)
         k = self.curvature

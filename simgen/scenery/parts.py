@@ -188,10 +188,13 @@ def discs(x: np.ndarray, y: np.ndarray, r: np.ndarray, quad_segs: int) -> np.nda
     (centre plus radius times its cosine and sine) in one vectorised call instead of a buffer
     each, which cost most of a frame's frontage."""
     ring = _unit_ring(quad_segs)
-    x, y, r = (np.asarray(a, dtype=float)[:, None] for a in np.broadcast_arrays(x, y, r))
-    xs, ys = x + r * ring[:, 0], y + r * ring[:, 1]
-    ys[:, [0, -1]] = y  # GEOS starts (and closes) the ring at (x + r, y) itself
-    return shapely.polygons(np.stack([xs, ys], axis=-1))
+    x, y = np.asarray(x, dtype=float)[:, None], np.asarray(y, dtype=float)[:, None]
+    r = np.asarray(r, dtype=float)[..., None]
+    coords = np.empty((len(x), len(ring), 2))
+    coords[..., 0] = x + r * ring[:, 0]
+    coords[..., 1] = y + r * ring[:, 1]
+    coords[:, [0, -1], 1] = y  # GEOS starts (and closes) the ring at (x + r, y) itself
+    return shapely.polygons(coords)
 
 
 def moved(m: Shape, at) -> Shape:
