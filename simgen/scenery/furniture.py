@@ -13,7 +13,7 @@ from ..materials import METAL, SIGN_BLUE, SIGN_RED, SIGN_WHITE, SIGN_YELLOW, TRI
 from ..meshes import Shape, _box, _extrude, bicycle
 from ..road import RoadLayout
 from ..world import Material, Part, fit_parts
-from .parts import Obstacle, UNIT_CYLINDER, _Meshes, _placed, footprint
+from .parts import Obstacle, UNIT_CYLINDER, _Meshes, _placed, footprint, plan_hull
 
 
 # --- Street furniture (clutter.furniture) -----------------------------------------------------
@@ -151,7 +151,7 @@ class _Furnisher:
 def _extent(parts: list[tuple[Material, Shape]]) -> tuple[shapely.Polygon, float]:
     """A piece's footprint (the convex hull of its vertices seen from above) and its top."""
     v = np.concatenate([m.vertices for _, m in parts])
-    return shapely.convex_hull(shapely.multipoints(v[:, :2])), float(v[:, 2].max())
+    return plan_hull(v[:, :2]), float(v[:, 2].max())
 
 
 def _sign(f: _Furnisher, side: int, s: float, kind: str) -> None:
@@ -167,7 +167,7 @@ def _sign(f: _Furnisher, side: int, s: float, kind: str) -> None:
     if inner is not None:
         local.append((inner_mat, _plate(_regular(*inner), 0.003, 0.006, z)))
     parts = [(mat, _posed(m, T)) for mat, m in local]
-    plate = shapely.convex_hull(shapely.multipoints(np.concatenate([m.vertices[:, :2] for _, m in parts[1:]])))
+    plate = plan_hull(np.concatenate([m.vertices[:, :2] for _, m in parts[1:]]))
     f.add(parts, [Obstacle(footprint(parts[0][1]).buffer(0.1)),
                   Obstacle(plate, base=ch + SIGN_LOWER_EDGE)])
 
@@ -184,7 +184,7 @@ def _signal(f: _Furnisher, T: np.ndarray, lit: str) -> None:
         local.append((signal_lens(colour), _plate(_regular(8, 0.10, 22.5), m + 0.25, m + 0.265,
                                                    z0 + 0.795 - 0.27 * k)))
     parts = [(mat, _posed(mesh, T)) for mat, mesh in local]
-    head = shapely.convex_hull(shapely.multipoints(np.concatenate([x.vertices[:, :2] for _, x in parts[1:]])))
+    head = plan_hull(np.concatenate([x.vertices[:, :2] for _, x in parts[1:]]))
     f.add(parts, [Obstacle(footprint(parts[0][1]).buffer(0.1)), Obstacle(head, base=z0)], corner=True)
 
 

@@ -66,7 +66,14 @@ def oriented_box(road: RoadLayout, s: float, d: float, z: float, l: float, w: fl
 
 
 def footprint(m: Shape | trimesh.Trimesh) -> shapely.Polygon:
-    return shapely.convex_hull(shapely.multipoints(np.asarray(m.vertices)[:, :2]))
+    return plan_hull(np.asarray(m.vertices)[:, :2])
+
+
+def plan_hull(xy: np.ndarray) -> shapely.Polygon:
+    """The convex hull of (n, 2) points, taken of them as a line string: GEOS hulls the same
+    coordinates in the same order whatever holds them, and a multipoint first makes a point
+    geometry of each."""
+    return shapely.convex_hull(shapely.linestrings(xy))
 
 
 def plain(m: trimesh.Trimesh) -> Shape:
