@@ -81,26 +81,30 @@ def _long_edges(v: np.ndarray, faces: np.ndarray, max_edge: float) -> np.ndarray
 
 @numba.njit(cache=True, nogil=True)
 def _midpoints(v: np.ndarray, faces: np.ndarray, long: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The vertices with the long edges' midpoints appended, in the order of their edges' keys
-    (higher index x n + lower), and each long edge's midpoint index (-1 where not long)."""
-    n = v.shape[0]
-    keys = np.empty(long.sum(), np.int64)
+    """The vertices with the long edges' midpoints appended, in the order of their edges'
+    (higher, lower) vertex index, and each long edge's midpoint index (-1 where not long)."""
+    n, m = v.shape[0], long.sum()
+    hi, lo = np.empty(m, np.int64), np.empty(m, np.int64)
     k = 0
     for i in range(faces.shape[0]):
         for e in range(3):
             if long[i, e]:
                 a, b = faces[i, e], faces[i, (e + 1) % 3]
-                keys[k] = max(a, b) * n + min(a, b)
+                hi[k], lo[k] = max(a, b), min(a, b)
                 k += 1
-    ends = np.unique(keys)
-    out = np.empty((n + len(ends), 3))
+    rank, ends = np.empty(m, np.int64), np.empty((m, 2), np.int64)
+    r = -1
+    for k in _counting_sorted(hi, _counting_sorted(lo, np.arange(m), n), n):
+        if r < 0 or hi[k] != ends[r, 0] or lo[k] != ends[r, 1]:
+            r += 1
+            ends[r, 0], ends[r, 1] = hi[k], lo[k]
+        rank[k] = n + r
+    out = np.empty((n + r + 1, 3))
     out[:n] = v
-    for r in range(len(ends)):
-        lo, hi = ends[r] % n, ends[r] // n
+    for j in range(r + 1):
         for c in range(3):
-            out[n + r, c] = (v[lo, c] + v[hi, c]) / 2
+            out[n + j, c] = (v[ends[j, 1], c] + v[ends[j, 0], c]) / 2
     mid = np.full(faces.shape, -1, np.int64)
-    rank = n + np.searchsorted(ends, keys)
     k = 0
     for i in range(faces.shape[0]):
         for e in range(3):
@@ -108,6 +112,22 @@ def _midpoints(v: np.ndarray, faces: np.ndarray, long: np.ndarray) -> tuple[np.n
                 mid[i, e] = rank[k]
                 k += 1
     return out, mid
+
+
+@numba.njit(cache=True, nogil=True)
+def _counting_sorted(keys: np.ndarray, order: np.ndarray, n: int) -> np.ndarray:
+    """`order` stably sorted by keys[order], keys in [0, n): a counting sort, linear in the
+    edges and the vertices where a comparison sort cost most of the subdivision."""
+    start = np.zeros(n + 1, np.int64)
+    for k in order:
+        start[keys[k] + 1] += 1
+    for i in range(n):
+        start[i + 1] += start[i]
+    out = np.empty_like(order)
+    for k in order:
+        out[start[keys[k]]] = k
+        start[keys[k]] += 1
+    return out
 
 
 @numba.njit(cache=True, nogil=True)
