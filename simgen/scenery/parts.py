@@ -140,10 +140,16 @@ class _Meshes:
         self.by_mat.setdefault(mat, []).append(mesh)
 
     def clear_of(self, footprints: np.ndarray) -> np.ndarray:
-        """Which footprints keep out of every keep-clear area (one vectorised test per area)."""
+        """Which footprints keep out of every keep-clear area: one vectorised test per area, of
+        the footprints whose envelopes meet its envelope (no others can meet it)."""
         keep = np.ones(len(footprints), bool)
+        if not self.clear:
+            return keep
+        x0, y0, x1, y1 = shapely.bounds(footprints).T
         for c in self.clear:
-            keep &= ~shapely.intersects(footprints, c)
+            cx0, cy0, cx1, cy1 = c.bounds
+            near = np.flatnonzero((x0 <= cx1) & (x1 >= cx0) & (y0 <= cy1) & (y1 >= cy0))
+            keep[near[shapely.intersects(footprints[near], c)]] = False
         return keep
 
     def blocks(self, mesh: Shape | trimesh.Trimesh) -> bool:
@@ -151,8 +157,8 @@ class _Meshes:
         return self.blocked(footprint(mesh))
 
     def blocked(self, fp: shapely.Polygon) -> bool:
-        """Whether a footprint reaches into a keep-clear area."""
-        return any(fp.intersects(c) for c in self.clear)
+        """Whether a footprint reaches into a keep-clear area (one vectorised test)."""
+        return bool(self.clear) and bool(shapely.intersects(fp, self.clear).any())
 
 
 # Unit meshes the frontage scales and places by plain vertex arithmetic (thousands per world:
