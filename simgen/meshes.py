@@ -292,11 +292,11 @@ def extrude(outline, axis: int, lo: float, hi: float) -> trimesh.Trimesh:
 def _extrude(outline, axis: int, lo: float, hi: float) -> Shape:
     """extrude() as a Shape."""
     outline = np.asarray(outline, dtype=float)
-    n, others = len(outline), [a for a in range(3) if a != axis]
-    v = np.empty((2 * n, 3))
-    v[:, others] = np.tile(outline, (2, 1))
-    v[:n, axis], v[n:, axis] = lo, hi
-    return _solid(v, _prism_faces(n))
+    n = len(outline)
+    v = np.empty((2, n, 3))
+    v[:, :, [a for a in range(3) if a != axis]] = outline
+    v[0, :, axis], v[1, :, axis] = lo, hi
+    return _solid(v.reshape(-1, 3), _prism_faces(n))
 
 
 @functools.cache
@@ -380,8 +380,11 @@ def _chamfered(profile, half_w: float, c: float) -> Shape:
     p = np.asarray(profile, dtype=float)
     x = np.clip(p[:, 0], p[:, 0].min() + c, p[:, 0].max() - c)
     n = len(p)
-    sections = ((x, half_w), (x, -half_w), (p[:, 0], half_w - c), (p[:, 0], c - half_w))
-    return hull(np.concatenate([np.column_stack((xs, np.full(n, y), p[:, 1])) for xs, y in sections]))
+    pts = np.empty((4, n, 3))
+    pts[:2, :, 0], pts[2:, :, 0] = x, p[:, 0]
+    pts[:, :, 1] = np.array([half_w, -half_w, half_w - c, c - half_w])[:, None]
+    pts[:, :, 2] = p[:, 1]
+    return hull(pts.reshape(-1, 3))
 
 
 def _on_side(s: int, belt: tuple, top: tuple, yb: float, yt: float, zb: float, zt: float):
