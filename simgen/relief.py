@@ -35,11 +35,17 @@ def drape_mesh(mesh: trimesh.Trimesh, road: RoadLayout) -> trimesh.Trimesh:
     """The mesh with plan-view edges split to MAX_EDGE and every vertex raised by the road's
     height under it. Splitting puts new vertices at edge midpoints, so the squeezed heights
     scale back exactly and vertical walls are split only along their length."""
+    v, f = _split_edges(mesh)
+    v[:, 2] += road.height(v[:, 0], v[:, 1])
+    return trimesh.Trimesh(v, f, process=False)
+
+
+def _split_edges(mesh: trimesh.Trimesh) -> tuple[np.ndarray, np.ndarray]:
+    """drape_mesh's vertices and faces before the rise: plan-view edges split to MAX_EDGE."""
     v = np.asarray(mesh.vertices) * [1.0, 1.0, _FLATTEN]
     v, f = _subdivide(v, np.asarray(mesh.faces, dtype=np.int64), MAX_EDGE)
     v[:, 2] /= _FLATTEN
-    v[:, 2] += road.height(v[:, 0], v[:, 1])
-    return trimesh.Trimesh(v, f, process=False)
+    return v, f
 
 
 @numba.njit(cache=True, nogil=True)
@@ -194,10 +200,16 @@ def _stacked(blocks: list) -> np.ndarray:
 
 
 def drape_parts(parts: list[Part], road: RoadLayout) -> list[Part]:
-    """Static parts (world frame) laid onto the road; unchanged on a flat road."""
+    """Static parts (world frame) laid onto the road as drape_mesh lays each; unchanged on a flat
+    road."""
     if road.flat:
         return parts
-    return [Part(drape_mesh(p.mesh, road), p.material) for p in parts]
+    split = [_split_edges(p.mesh) for p in parts]
+    v = np.concatenate([v for v, _ in split])  # every part's rise in one call: it is elementwise
+    rise = np.split(road.height(v[:, 0], v[:, 1]), np.cumsum([len(v) for v, _ in split])[:-1])
+    for (v, _), z in zip(split, rise):
+        v[:, 2] += z
+    return [Part(trimesh.Trimesh(v, f, process=False), p.material) for p, (v, f) in zip(parts, split)]
 
 
 def _tilt_to(normal: np.ndarray) -> np.ndarray:

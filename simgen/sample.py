@@ -348,9 +348,9 @@ def sample_world(spec: SceneSpec, seed: int, frame_index: int) -> World:
     v = _values(spec, seed, frame_index)
     road = _road_layout(spec, v)
     scenery = _scenery_params(spec, v, road, seed, frame_index)
-    static, obstacles = build_scenery(scenery)
-    actors = _place_actors(spec, v, road, obstacles, factor_rng(seed, frame_index, "actors"),
-                           plan_frontage(scenery))
+    plan = plan_frontage(scenery)
+    static, obstacles = build_scenery(scenery, plan)
+    actors = _place_actors(spec, v, road, obstacles, factor_rng(seed, frame_index, "actors"), plan)
     _brake(actors, float(v["traffic.braking"]), factor_rng(seed, frame_index, "braking"))
     rig = _make_rig(spec, v, road, actors)
     ego_velocity = np.array([float(v["rig.ego_speed"]), 0.0, 0.0]) if rig.kind == "onboard" else np.zeros(3)

@@ -54,7 +54,7 @@ def _merged(meshes: list[Shape | trimesh.Trimesh]) -> trimesh.Trimesh:
     return trimesh.Trimesh(np.concatenate([m.vertices for m in meshes]), faces, process=False)
 
 
-def build_scenery(params: dict) -> tuple[list[Part], list[Obstacle]]:
+def build_scenery(params: dict, plan: Frontage | None = None) -> tuple[list[Part], list[Obstacle]]:
     """Static parts (world frame) and their footprints, from the scenery parameters.
 
     Everything is planned on a flat road and then laid onto the road's vertical profile
@@ -62,13 +62,14 @@ def build_scenery(params: dict) -> tuple[list[Part], list[Obstacle]]:
 
     `params["keep_clear"]` (optional): a list of (x, y) polygon vertices where no building, tree
     or pole may stand, e.g. the line of sight of an orbit camera to its target. With
-    `clutter.frontage` the sides are lots and side streets (plan_frontage), else one closed row.
+    `clutter.frontage` the sides are lots and side streets (plan_frontage, or `plan` where the
+    caller has it already), else one closed row.
     """
     road = RoadLayout(**params["road"])
     clutter = params["clutter"]
     ground, buildings, tree_factor, woods = ENVIRONMENTS[clutter.get("environment", "city")]
     out = _Meshes([shapely.Polygon(params["keep_clear"])] if params.get("keep_clear") else [])
-    plan = plan_frontage(params)
+    plan = plan_frontage(params) if plan is None else plan
     if plan is not None:
         build_frontage(road, plan, clutter, ground, int(params["seed"]), out)
         _furniture(road, clutter, int(params["seed"]), out)
