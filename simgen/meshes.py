@@ -351,9 +351,15 @@ def rim(x, face, r, out, sections=8, rx=None) -> Shape:
     return _cylinder_y(x, face + out * RIM_PROUD / 2, r, rrx, rr, RIM_PROUD, sections)
 
 
+# SIZE_STATS and the paint shares as the samplers use them, made once (per draw they cost more
+# than the draws).
+_SIZE_ARRAYS = {cls: (np.array(mean), np.array(sd)) for cls, (mean, sd) in SIZE_STATS.items()}
+_CAR_PAINT_P, _PAINT_P = _CAR_PAINT_SHARE / _CAR_PAINT_SHARE.sum(), _PAINT_SHARE / _PAINT_SHARE.sum()
+
+
 def sample_size(cls: str, rng: np.random.Generator) -> tuple[float, float, float]:
     """(h, w, l) from a normal truncated at 2.5 sd, correlated through one shared 'scale' draw."""
-    mean, sd = (np.array(v) for v in SIZE_STATS[cls])
+    mean, sd = _SIZE_ARRAYS[cls]
     common = rng.standard_normal()
     z = np.clip(0.6 * common + 0.8 * rng.standard_normal(3), -2.5, 2.5)
     hwl = mean + z * sd
@@ -367,8 +373,7 @@ def sample_recipe(cls: str, rng: np.random.Generator) -> dict:
     if cls in ("Pedestrian", "Cyclist"):
         color = _CLOTHES[rng.integers(len(_CLOTHES))]
     else:
-        share = _CAR_PAINT_SHARE if cls == "Car" else _PAINT_SHARE
-        color = _PAINTS[rng.choice(len(_PAINTS), p=share / share.sum())]
+        color = _PAINTS[rng.choice(len(_PAINTS), p=_CAR_PAINT_P if cls == "Car" else _PAINT_P)]
     color = np.clip(color * rng.uniform(0.85, 1.15), 0.0, 1.0)
     return {"kind": cls.lower(), "dims": [h, w, l], "color": [round(float(c), 4) for c in color],
             "seed": int(rng.integers(2**31))}

@@ -10,6 +10,8 @@ height, across the road), and side streets keep their mouths free of parked cars
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import shapely
 
@@ -92,9 +94,18 @@ def _recipe(cls: str, spec: SceneSpec, rng: np.random.Generator) -> dict:
 
 
 def _pick_class(mix: dict[str, float], rng: np.random.Generator) -> str:
-    names = sorted(mix)
-    p = np.array([mix[n] for n in names], dtype=float)
-    return names[int(rng.choice(len(names), p=p / p.sum()))]
+    names, p = _odds(tuple(sorted(mix.items())))
+    return names[int(rng.choice(len(names), p=p))]
+
+
+@functools.lru_cache(maxsize=64)
+def _odds(mix: tuple[tuple[str, float], ...]) -> tuple[tuple[str, ...], np.ndarray]:
+    """A class mix's names in order and their probabilities, made once per mix (per draw they
+    cost more than the draw)."""
+    p = np.array([w for _, w in mix], dtype=float)
+    p = p / p.sum()
+    p.flags.writeable = False  # shared by every draw from this mix
+    return tuple(n for n, _ in mix), p
 
 
 def _road_layout(spec: SceneSpec, v: dict) -> RoadLayout:
