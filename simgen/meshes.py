@@ -396,10 +396,10 @@ def _on_side(s: int, belt: tuple, top: tuple, yb: float, yt: float, zb: float, z
     """A pillar on the cabin's side s (+1 left): the band [belt] at the belt line and [top] at the
     roof, on the side's slanted plane, standing 12 mm proud of the glass."""
     n = np.array([0.0, s * (zt - zb), yb - yt])
-    n /= np.linalg.norm(n)
-    quad = np.array([[belt[0], s * yb, zb], [belt[1], s * yb, zb],
-                     [top[1], s * yt, zt], [top[0], s * yt, zt]])
-    return hexahedron(np.concatenate([quad - 0.005 * n, quad + 0.012 * n]))
+    n0, n1, n2 = (n / np.linalg.norm(n)).tolist()
+    quad = ((belt[0], s * yb, zb), (belt[1], s * yb, zb), (top[1], s * yt, zt), (top[0], s * yt, zt))
+    return hexahedron([(x - 0.005 * n0, y - 0.005 * n1, z - 0.005 * n2) for x, y, z in quad]
+                      + [(x + 0.012 * n0, y + 0.012 * n1, z + 0.012 * n2) for x, y, z in quad])
 
 
 def _mirror(s: int, x: float, inner: float, outer: float, z: float) -> Shape:

@@ -200,8 +200,8 @@ def _stacked(blocks: list) -> np.ndarray:
 
 
 def drape_parts(parts: list[Part], road: RoadLayout) -> list[Part]:
-    """Static parts (world frame) laid onto the road as drape_mesh lays each; unchanged on a flat
-    road."""
+    """Static parts (world frame; anything with vertices and faces) laid onto the road as
+    drape_mesh lays each, as trimeshes; unchanged on a flat road."""
     if road.flat:
         return parts
     split = [_split_edges(p.mesh) for p in parts]

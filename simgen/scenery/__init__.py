@@ -46,12 +46,21 @@ from .lots import POST_PITCH, POST_W, RAIL_DEPTH, RAIL_TOP  # noqa: F401
 from .parts import MARK_Z, VERGE_WIDTH  # noqa: F401
 
 
-def _merged(meshes: list[Shape | trimesh.Trimesh]) -> trimesh.Trimesh:
+def _merged(meshes: list[Shape | trimesh.Trimesh]) -> Shape:
     """One mesh of many: trimesh.util.concatenate's vertices and faces (stacked, faces offset)
     without its per-mesh type checks, visuals and metadata, which cost ~50 ms a frame."""
     starts = np.cumsum([0] + [len(m.vertices) for m in meshes[:-1]])
     faces = np.concatenate([m.faces + start for m, start in zip(meshes, starts)])
-    return trimesh.Trimesh(np.concatenate([m.vertices for m in meshes]), faces, process=False)
+    return Shape(np.concatenate([m.vertices for m in meshes]), faces)
+
+
+def _static(out: _Meshes, road: RoadLayout) -> list[Part]:
+    """The scenery's parts, one trimesh per material, laid onto the road (drape_parts makes the
+    trimeshes of a road that is not flat, so none is made for the flat mesh before)."""
+    parts = [Part(_merged(ms), mat) for mat, ms in out.by_mat.items()]
+    if road.flat:
+        return [Part(trimesh.Trimesh(*p.mesh, process=False), p.material) for p in parts]
+    return drape_parts(parts, road)
 
 
 def build_scenery(params: dict, plan: Frontage | None = None) -> tuple[list[Part], list[Obstacle]]:
@@ -73,8 +82,7 @@ def build_scenery(params: dict, plan: Frontage | None = None) -> tuple[list[Part
     if plan is not None:
         build_frontage(road, plan, clutter, ground, int(params["seed"]), out)
         _furniture(road, clutter, int(params["seed"]), out)
-        parts = [Part(_merged(ms), mat) for mat, ms in out.by_mat.items()]
-        return drape_parts(parts, road), out.obstacles
+        return _static(out, road), out.obstacles
     rng = np.random.default_rng(params["seed"])
     _ground(road, ground, out)
     markings(road, out)
@@ -90,5 +98,4 @@ def build_scenery(params: dict, plan: Frontage | None = None) -> tuple[list[Part
         if clutter["pole_spacing"] > 0:
             poles(road, side, curb, clutter["pole_spacing"], rng, out)
     _furniture(road, clutter, int(params["seed"]), out)
-    parts = [Part(_merged(ms), mat) for mat, ms in out.by_mat.items()]
-    return drape_parts(parts, road), out.obstacles
+    return _static(out, road), out.obstacles
