@@ -242,17 +242,17 @@ def _looks_inward(v: np.ndarray, face: np.ndarray) -> bool:
     """Whether `face` turns towards the solid's vertex mean: the sign of det [b - a, c - a,
     a - mean]. The triple product (compiled, _triple) decides; only where it is too close to 0
     for its sign to be sure does np.linalg.det, as before, decide."""
-    det, size, rows = _triple(v, face[0], face[1], face[2])
+    det, size, *rows = _triple(v, face[0], face[1], face[2])
     if abs(det) > 1e-9 * size:
         return det < 0
-    return bool(np.linalg.det(rows) < 0)
+    return bool(np.linalg.det(np.reshape(rows, (3, 3))) < 0)
 
 
 @numba.njit(cache=True, nogil=True)
-def _triple(v: np.ndarray, i: int, j: int, k: int) -> tuple[float, float, np.ndarray]:
+def _triple(v: np.ndarray, i: int, j: int, k: int) -> tuple[float, ...]:
     """det [b - a, c - a, a - mean] of the face (i, j, k) in plain floats, the size its error
-    scales with, and the three rows. The mean adds the vertices in turn to 0, as numpy's
-    v.mean(axis=0) does."""
+    scales with, and the three rows' nine entries (floats only: an array made here costs more
+    than the rest). The mean adds the vertices in turn to 0, as numpy's v.mean(axis=0) does."""
     m0 = m1 = m2 = 0.0
     for r in range(v.shape[0]):
         m0, m1, m2 = m0 + v[r, 0], m1 + v[r, 1], m2 + v[r, 2]
@@ -264,7 +264,7 @@ def _triple(v: np.ndarray, i: int, j: int, k: int) -> tuple[float, float, np.nda
     z0, z1, z2 = a0 - m0, a1 - m1, a2 - m2
     det = u0 * (w1 * z2 - w2 * z1) - u1 * (w0 * z2 - w2 * z0) + u2 * (w0 * z1 - w1 * z0)
     size = (abs(u0) + abs(u1) + abs(u2)) * (abs(w0) + abs(w1) + abs(w2)) * (abs(z0) + abs(z1) + abs(z2))
-    return det, size, np.array([[u0, u1, u2], [w0, w1, w2], [z0, z1, z2]])
+    return det, size, u0, u1, u2, w0, w1, w2, z0, z1, z2
 
 
 def hexahedron(v) -> Shape:
