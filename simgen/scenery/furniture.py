@@ -4,6 +4,7 @@ bicycles parked at them, placed on the sidewalks of both street models after eve
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 
 import numpy as np
 import shapely
@@ -114,14 +115,15 @@ class _Furnisher:
         curb = self.road.right_curb if side < 0 else self.road.left_curb
         return self.road.pose(s, curb + side * inset, 0.0, yaw)
 
-    def add(self, parts: list[tuple[Material, Shape]], obstacles: list[Obstacle],
+    def add(self, parts: list[tuple[Material, Shape]], obstacles: Callable[[], list[Obstacle]],
             corner: bool = False) -> bool:
         """Adds the piece unless it stands in a keep-clear area (at a corner: a sight line only),
-        on an obstacle lower than its top, or on a piece placed before."""
+        on an obstacle lower than its top, or on a piece placed before; its obstacles are made
+        only for a piece placed."""
         fp, top = _extent(parts)
         if not self._free(fp, top, self.out.sight if corner else self.out.clear, self.placed):
             return False
-        self._put(parts, obstacles)
+        self._put(parts, obstacles())
         self.placed.append(fp)
         return True
 
@@ -137,15 +139,21 @@ class _Furnisher:
         return True
 
     def _free(self, fp: shapely.Polygon, top: float, keep_clear: list, placed: list) -> bool:
-        if any(fp.intersects(c) for c in keep_clear):
+        if keep_clear and shapely.intersects(fp, keep_clear).any():
             return False
         hits = self.tree.query(fp, predicate="intersects")
-        return not (np.any(self.bases[hits] < top) or any(fp.intersects(p) for p in placed))
+        return not (np.any(self.bases[hits] < top) or (placed and shapely.intersects(fp, placed).any()))
 
     def _put(self, parts: list[tuple[Material, Shape]], obstacles: list[Obstacle]) -> None:
         for mat, m in parts:
             self.out.add(mat, m)
         self.out.obstacles += obstacles
+
+
+def _grown(meshes: list[Shape], margin: float) -> list[Obstacle]:
+    """Obstacles: the meshes' footprints grown by `margin` (one vectorised buffer, with
+    Polygon.buffer's 16 segments a quadrant)."""
+    return [Obstacle(p) for p in shapely.buffer([footprint(m) for m in meshes], margin, quad_segs=16)]
 
 
 def _extent(parts: list[tuple[Material, Shape]]) -> tuple[shapely.Polygon, float]:
@@ -161,9 +169,8 @@ def _sign(f: _Furnisher, side: int, s: float, kind: str) -> None:
     reach, local = _sign_local(kind, ch)
     T = f.pose(side, s, reach, np.pi if side < 0 else 0.0)
     parts = [(mat, _posed(m, T)) for mat, m in local]
-    plate = plan_hull(np.concatenate([m.vertices[:, :2] for _, m in parts[1:]]))
-    f.add(parts, [Obstacle(footprint(parts[0][1]).buffer(0.1)),
-                  Obstacle(plate, base=ch + SIGN_LOWER_EDGE)])
+    f.add(parts, lambda: _grown([parts[0][1]], 0.1) + [
+        Obstacle(plan_hull(np.concatenate([m.vertices[:, :2] for _, m in parts[1:]])), base=ch + SIGN_LOWER_EDGE)])
 
 
 @functools.lru_cache(maxsize=64)
@@ -190,9 +197,9 @@ def _frozen(local: list[tuple[Material, Shape]]) -> tuple[tuple[Material, Shape]
 def _signal(f: _Furnisher, T: np.ndarray, lit: str) -> None:
     """A signal head on its mast at pose T (x: where the lamps face), `lit` the lamp that is on."""
     parts = [(mat, _posed(mesh, T)) for mat, mesh in _signal_local(f.road.curb_height, lit)]
-    head = plan_hull(np.concatenate([x.vertices[:, :2] for _, x in parts[1:]]))
-    f.add(parts, [Obstacle(footprint(parts[0][1]).buffer(0.1)),
-                  Obstacle(head, base=f.road.curb_height + SIGNAL_LOWER_EDGE)], corner=True)
+    f.add(parts, lambda: _grown([parts[0][1]], 0.1) + [
+        Obstacle(plan_hull(np.concatenate([x.vertices[:, :2] for _, x in parts[1:]])),
+                 base=f.road.curb_height + SIGNAL_LOWER_EDGE)], corner=True)
 
 
 @functools.lru_cache(maxsize=64)
@@ -229,7 +236,7 @@ def _bin(f: _Furnisher, side: int, s: float, colour) -> None:
     """A drum hung on the side of its post."""
     T = f.pose(side, s, SIDE_CLEARANCE + BIN_R)
     parts = [(mat, _posed(m, T)) for mat, m in _bin_local(f.road.curb_height, colour)]
-    f.add(parts, [Obstacle(footprint(m).buffer(0.05)) for _, m in parts])
+    f.add(parts, lambda: _grown([m for _, m in parts], 0.05))
 
 
 @functools.lru_cache(maxsize=64)
@@ -247,7 +254,7 @@ def _bollards(f: _Furnisher, side: int, s: float, n: int) -> None:
     for k in range(n):
         T = f.pose(side, s + k * BOLLARD_PITCH, SIDE_CLEARANCE + BOLLARD_R)
         parts += [(post_mat, _posed(post, T)), (band_mat, _posed(band, T))]
-    f.add(parts, [Obstacle(footprint(m).buffer(0.1)) for _, m in parts[::2]])
+    f.add(parts, lambda: _grown([m for _, m in parts[::2]], 0.1))
 
 
 @functools.lru_cache(maxsize=64)
@@ -271,7 +278,7 @@ def _stands(f: _Furnisher, side: int, s: float, n: int, bikes: np.random.Generat
         for gap in (-BIKE_GAP, BIKE_GAP):
             if bikes.uniform() < STAND_OCCUPANCY:
                 parked.append((k, gap, np.pi / 2 if bikes.uniform() < 0.5 else -np.pi / 2))
-    if not f.add(parts, [Obstacle(footprint(m).buffer(0.1)) for _, m in parts]):
+    if not f.add(parts, lambda: _grown([m for _, m in parts], 0.1)):
         return
     for k, gap, yaw in parked:
         T = f.pose(side, s + k * STAND_PITCH + gap, SIDE_CLEARANCE + BIKE_L / 2, yaw)
