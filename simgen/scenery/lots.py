@@ -28,6 +28,17 @@ from .parts import (FACADES, Obstacle, QUAD, SPHERE_TOP, UNIT_BOX, UNIT_CYLINDER
 from .street import carriageway, markings, poles
 
 
+def _unit_box_gather() -> np.ndarray:
+    """Each UNIT_BOX vertex as indices into the ten corner values _qbox computes: x at 2 ix + iy,
+    y at 4 + 2 ix + iy, z at 8 + iz, i 1 where the vertex takes the axis's higher value."""
+    ix, iy, iz = (UNIT_BOX.vertices > UNIT_BOX.vertices.min(axis=0)).T.astype(int)
+    return np.column_stack((2 * ix + iy, 4 + 2 * ix + iy, 8 + iz))
+
+
+_UNIT_BOX_VALUES = [tuple(np.unique(axis).tolist()) for axis in UNIT_BOX.vertices.T]  # lower, higher
+_UNIT_BOX_GATHER = _unit_box_gather()
+
+
 def _qbox(road: RoadLayout, side: int, s0: float, s1: float, q0: float, q1: float, z: float,
           h: float) -> Shape:
     """A box over [s0, s1] along the road and q0..q1 metres behind the sidewalk of `side`, its
@@ -44,15 +55,6 @@ def _qbox(road: RoadLayout, side: int, s0: float, s1: float, q0: float, q1: floa
                         x + c * lx1 - sn * ly1, y + sn * lx0 + c * ly0, y + sn * lx0 + c * ly1,
                         y + sn * lx1 + c * ly0, y + sn * lx1 + c * ly1, lz0 + z + h / 2, lz1 + z + h / 2])
     return Shape(corners[_UNIT_BOX_GATHER], UNIT_BOX.faces)
-
-
-# UNIT_BOX's two values along each axis, and each vertex's (x, y, z) as indices into the corner
-# values _qbox computes: x at 2 ix + iy, y at 4 + 2 ix + iy, z at 8 + iz.
-_UNIT_BOX_VALUES = [tuple(np.unique(axis).tolist()) for axis in UNIT_BOX.vertices.T]
-_UNIT_BOX_GATHER = np.column_stack([
-    2 * (UNIT_BOX.vertices[:, 0] > _UNIT_BOX_VALUES[0][0]) + (UNIT_BOX.vertices[:, 1] > _UNIT_BOX_VALUES[1][0]),
-    4 + 2 * (UNIT_BOX.vertices[:, 0] > _UNIT_BOX_VALUES[0][0]) + (UNIT_BOX.vertices[:, 1] > _UNIT_BOX_VALUES[1][0]),
-    8 + (UNIT_BOX.vertices[:, 2] > _UNIT_BOX_VALUES[2][0])])
 
 
 def _quad_polygon(road: RoadLayout, s0: float, s1: float, d0: float, d1: float) -> shapely.Polygon:
