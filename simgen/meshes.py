@@ -750,6 +750,12 @@ def bicycle() -> list[Part]:
     """A bicycle in its rider's unit frame (x forward, wheels on z = 0, the rider's height 1):
     two wheels, the frame's tubes and the handlebar. Ridden (a cyclist) or parked
     (simgen.scenery's cycle stands), scaled to its owner's size by fit_parts."""
+    return list(_bicycle())
+
+
+@functools.cache
+def _bicycle() -> tuple[Part, ...]:
+    """bicycle()'s parts, the same for every bicycle: made once, read-only."""
     r = 0.19  # wheel radius relative to the rider's height
     xf, xb = 0.48, -0.48
     parts = [Part(m, TYRE) for x in (xf, xb) for m in spoked_wheel(x, 0.0, r, 0.03, 0.025)]
@@ -760,7 +766,9 @@ def bicycle() -> list[Part]:
                  (crank, bar), (bar, np.array([xf, 0, r])), (seat, bar)):
         parts.append(Part(_limb(a, b, 0.015), FRAME))
     parts.append(Part(_box(0.38, 0.42, -0.22, 0.22, 0.60, 0.64), FRAME))
-    return parts
+    for p in parts:
+        p.mesh.vertices.flags.writeable = False
+    return tuple(parts)
 
 
 def _cyclist(rng, c: Material) -> list[Part]:
