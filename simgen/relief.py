@@ -57,8 +57,7 @@ def _subdivide(v: np.ndarray, faces: np.ndarray, max_edge: float) -> tuple[np.nd
     which is how trimesh's row hash sorts them."""
     done = []
     while True:
-        long = _long_edges(v, faces, max_edge)
-        count = long.sum(axis=1)
+        long, count = _long_edges(v, faces, max_edge)
         if not count.any():
             done.append(faces)
             return v, _stacked(done)
@@ -76,13 +75,17 @@ def _length2(v: np.ndarray, a: int, b: int) -> float:
 
 
 @numba.njit(cache=True, nogil=True)
-def _long_edges(v: np.ndarray, faces: np.ndarray, max_edge: float) -> np.ndarray:
-    """(F, 3) bool: whether edge e of each face (from corner e to the next) is longer than max_edge."""
+def _long_edges(v: np.ndarray, faces: np.ndarray, max_edge: float) -> tuple[np.ndarray, np.ndarray]:
+    """(F, 3) bool: whether edge e of each face (from corner e to the next) is longer than
+    max_edge; and (F,) how many of each face's edges are."""
     long = np.zeros(faces.shape, np.bool_)
+    count = np.zeros(faces.shape[0], np.int64)
     for i in range(faces.shape[0]):
         for e in range(3):
-            long[i, e] = math.sqrt(_length2(v, faces[i, e], faces[i, (e + 1) % 3])) > max_edge
-    return long
+            if math.sqrt(_length2(v, faces[i, e], faces[i, (e + 1) % 3])) > max_edge:
+                long[i, e] = True
+                count[i] += 1
+    return long, count
 
 
 @numba.njit(cache=True, nogil=True)
@@ -143,21 +146,22 @@ def _split(v: np.ndarray, faces: np.ndarray, long: np.ndarray, mid: np.ndarray,
     order and by trimesh's templates. One long edge, rotated to (a, b): [a, p, c] and [p, b, c].
     Two, rotated so that (c, a) is whole: all corners [p, b, q], then the quads a p q c cut along
     their shorter diagonals, as two blocks. Three: one into four."""
-    n1, n2, n3 = (count == 1).sum(), (count == 2).sum(), (count == 3).sum()
+    tally = np.bincount(count, minlength=4)
+    n1, n2, n3 = tally[1], tally[2], tally[3]
     out = np.empty((2 * n1 + 3 * n2 + 4 * n3, 3), np.int64)
     i1, i2, i3 = 0, 2 * n1, 2 * n1 + 3 * n2
     for i in range(faces.shape[0]):
-        f, m = faces[i], mid[i]
         if count[i] == 1:
             j = 0 if long[i, 0] else (1 if long[i, 1] else 2)
-            a, b, c, p = f[j], f[(j + 1) % 3], f[(j + 2) % 3], m[j]
+            a, b, c, p = faces[i, j], faces[i, (j + 1) % 3], faces[i, (j + 2) % 3], mid[i, j]
             out[i1, 0], out[i1, 1], out[i1, 2] = a, p, c
             out[i1 + 1, 0], out[i1 + 1, 1], out[i1 + 1, 2] = p, b, c
             i1 += 2
         elif count[i] == 2:
             whole = 0 if not long[i, 0] else (1 if not long[i, 1] else 2)
             j = (whole + 1) % 3
-            a, b, c, p, q = f[j], f[(j + 1) % 3], f[(j + 2) % 3], m[j], m[(j + 1) % 3]
+            a, b, c = faces[i, j], faces[i, (j + 1) % 3], faces[i, (j + 2) % 3]
+            p, q = mid[i, j], mid[i, (j + 1) % 3]
             out[i2, 0], out[i2, 1], out[i2, 2] = p, b, q
             if _length2(v, a, q) <= _length2(v, p, c):
                 out[i2 + n2, 0], out[i2 + n2, 1], out[i2 + n2, 2] = a, p, q
@@ -167,7 +171,7 @@ def _split(v: np.ndarray, faces: np.ndarray, long: np.ndarray, mid: np.ndarray,
                 out[i2 + 2 * n2, 0], out[i2 + 2 * n2, 1], out[i2 + 2 * n2, 2] = p, q, c
             i2 += 1
         elif count[i] == 3:
-            v0, v1, v2, m0, m1, m2 = f[0], f[1], f[2], m[0], m[1], m[2]
+            v0, v1, v2, m0, m1, m2 = faces[i, 0], faces[i, 1], faces[i, 2], mid[i, 0], mid[i, 1], mid[i, 2]
             out[i3, 0], out[i3, 1], out[i3, 2] = v0, m0, m2
             out[i3 + 1, 0], out[i3 + 1, 1], out[i3 + 1, 2] = m0, v1, m1
             out[i3 + 2, 0], out[i3 + 2, 1], out[i3 + 2, 2] = m2, m1, v2
@@ -179,7 +183,7 @@ def _split(v: np.ndarray, faces: np.ndarray, long: np.ndarray, mid: np.ndarray,
 @numba.njit(cache=True, nogil=True)
 def _where_count(faces: np.ndarray, count: np.ndarray, k: int) -> np.ndarray:
     """The faces with k long edges, in order."""
-    out = np.empty(((count == k).sum(), 3), np.int64)
+    out = np.empty((np.bincount(count, minlength=k + 1)[k], 3), np.int64)
     r = 0
     for i in range(faces.shape[0]):
         if count[i] == k:
