@@ -12,6 +12,7 @@ import functools
 from dataclasses import dataclass
 from typing import NamedTuple
 
+import numba
 import numpy as np
 import trimesh
 from scipy.spatial import ConvexHull
@@ -19,6 +20,7 @@ from scipy.spatial import ConvexHull
 # The vehicle materials at 905 nm and their sources: simgen.materials.
 from .materials import (FRAME, GLASS, HEADLIGHT, PLATE, RIM, TAILLIGHT, TRIM, TYRE, paint_material,
                         skin_reflectivity, textile_reflectivity)
+from .facets import cross
 from .usermesh import build_user_parts
 from .world import Material, Part, fit_parts
 
@@ -164,18 +166,40 @@ def _trimesh(shape: Shape) -> trimesh.Trimesh:
 def hull(points) -> Shape:
     """Closed convex hull of a point set, faces wound outward: watertight by construction.
 
-    qhull directly (trimesh's wrapper re-processes the mesh, 5x slower for these small hulls);
-    np.cross's and np.unique's results written out, as their overhead costs more here."""
+    qhull directly (trimesh's wrapper re-processes the mesh, 5x slower for these small hulls),
+    its faces turned and renumbered by a compiled loop (_outward)."""
     pts = np.asarray(points, dtype=float)
-    faces = ConvexHull(pts).simplices
-    used = np.zeros(len(pts), bool)
-    used[faces] = True
-    tri = pts[faces]
-    (u0, u1, u2), (w0, w1, w2) = (tri[:, 1] - tri[:, 0]).T, (tri[:, 2] - tri[:, 0]).T
-    normal = np.column_stack((u1 * w2 - u2 * w1, u2 * w0 - u0 * w2, u0 * w1 - u1 * w0))
-    inward = np.einsum("ij,ij->i", normal, tri.mean(axis=1) - pts[used].mean(axis=0)) < 0
-    faces = np.where(inward[:, None], faces[:, ::-1], faces)
-    return Shape(pts[used], (np.cumsum(used) - 1)[faces])
+    return Shape(*_outward(pts, ConvexHull(pts).simplices))
+
+
+@numba.njit(cache=True, nogil=True)
+def _outward(pts: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The hull's points and its faces turned outward, renumbered onto those points: a face
+    turns where its normal (np.cross's products and differences) points away from the way from
+    the points' mean to the face's centre. The means add in numpy's order (0, then each in turn)
+    and the dot product in np.einsum's ((x z) then y), so every face turns as numpy turned it."""
+    n = pts.shape[0]
+    used = np.zeros(n, np.bool_)
+    for f in faces.ravel():
+        used[f] = True
+    rank = np.cumsum(used) - 1
+    mean = np.zeros(3)
+    for i in range(n):
+        if used[i]:
+            for k in range(3):
+                mean[k] += pts[i, k]
+    mean /= rank[-1] + 1
+    out = np.empty((faces.shape[0], 3), np.int64)
+    for t in range(faces.shape[0]):
+        a, b, c = pts[faces[t, 0]], pts[faces[t, 1]], pts[faces[t, 2]]
+        u0, u1, u2, w0, w1, w2 = b[0] - a[0], b[1] - a[1], b[2] - a[2], c[0] - a[0], c[1] - a[1], c[2] - a[2]
+        d0 = (0.0 + a[0] + b[0] + c[0]) / 3 - mean[0]
+        d1 = (0.0 + a[1] + b[1] + c[1]) / 3 - mean[1]
+        d2 = (0.0 + a[2] + b[2] + c[2]) / 3 - mean[2]
+        dot = (u1 * w2 - u2 * w1) * d0 + (u0 * w1 - u1 * w0) * d2 + (u2 * w0 - u0 * w2) * d1
+        for j in range(3):
+            out[t, j] = rank[faces[t, 2 - j] if dot < 0 else faces[t, j]]
+    return pts[used], out
 
 
 _BOX_FACES = np.array([[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7], [0, 1, 5], [0, 5, 4],
@@ -187,12 +211,15 @@ def box(x0, x1, y0, y1, z0, z1) -> trimesh.Trimesh:
     return _trimesh(_box(x0, x1, y0, y1, z0, z1))
 
 
+# Each corner of box() as indices into its sorted bounds (x0, x1, y0, y1, z0, z1).
+_BOX_CORNERS = np.array([[0, 2, 4], [1, 2, 4], [1, 3, 4], [0, 3, 4], [0, 2, 5], [1, 2, 5], [1, 3, 5], [0, 3, 5]])
+
+
 def _box(x0, x1, y0, y1, z0, z1) -> Shape:
-    """box() as a Shape."""
-    (x0, x1), (y0, y1), (z0, z1) = sorted((x0, x1)), sorted((y0, y1)), sorted((z0, z1))
-    v = np.array([[x0, y0, z0], [x1, y0, z0], [x1, y1, z0], [x0, y1, z0],
-                  [x0, y0, z1], [x1, y0, z1], [x1, y1, z1], [x0, y1, z1]], dtype=float)
-    return Shape(v, _BOX_FACES)
+    """box() as a Shape: its corners gathered from the bounds in one call (a nested list of 24
+    floats costs numpy several times more)."""
+    bounds = np.array([*sorted((x0, x1)), *sorted((y0, y1)), *sorted((z0, z1))], dtype=float)
+    return Shape(bounds[_BOX_CORNERS], _BOX_FACES)
 
 
 def prism_xz(profile, y0, y1) -> Shape:
@@ -213,18 +240,31 @@ def _solid(v, faces) -> Shape:
 
 def _looks_inward(v: np.ndarray, face: np.ndarray) -> bool:
     """Whether `face` turns towards the solid's vertex mean: the sign of det [b - a, c - a,
-    a - mean]. The triple product in plain floats decides (np.linalg.det costs 10 us); only
-    where it is too close to 0 for its sign to be sure does np.linalg.det, as before, decide.
-    Differences in plain floats too: numpy's per call overhead costs more than these 3-vectors."""
-    (a0, a1, a2), (b0, b1, b2), (c0, c1, c2) = v[face].tolist()
-    m0, m1, m2 = (np.add.reduce(v, 0) / len(v)).tolist()  # v.mean(axis=0), without its wrapper
-    u0, u1, u2, w0, w1, w2 = b0 - a0, b1 - a1, b2 - a2, c0 - a0, c1 - a1, c2 - a2
+    a - mean]. The triple product (compiled, _triple) decides; only where it is too close to 0
+    for its sign to be sure does np.linalg.det, as before, decide."""
+    det, size, *rows = _triple(v, face[0], face[1], face[2])
+    if abs(det) > 1e-9 * size:
+        return det < 0
+    return bool(np.linalg.det(np.reshape(rows, (3, 3))) < 0)
+
+
+@numba.njit(cache=True, nogil=True)
+def _triple(v: np.ndarray, i: int, j: int, k: int) -> tuple[float, ...]:
+    """det [b - a, c - a, a - mean] of the face (i, j, k) in plain floats, the size its error
+    scales with, and the three rows' nine entries (floats only: an array made here costs more
+    than the rest). The mean adds the vertices in turn to 0, as numpy's v.mean(axis=0) does."""
+    m0 = m1 = m2 = 0.0
+    for r in range(v.shape[0]):
+        m0, m1, m2 = m0 + v[r, 0], m1 + v[r, 1], m2 + v[r, 2]
+    n = v.shape[0]
+    m0, m1, m2 = m0 / n, m1 / n, m2 / n
+    a0, a1, a2 = v[i, 0], v[i, 1], v[i, 2]
+    u0, u1, u2 = v[j, 0] - a0, v[j, 1] - a1, v[j, 2] - a2
+    w0, w1, w2 = v[k, 0] - a0, v[k, 1] - a1, v[k, 2] - a2
     z0, z1, z2 = a0 - m0, a1 - m1, a2 - m2
     det = u0 * (w1 * z2 - w2 * z1) - u1 * (w0 * z2 - w2 * z0) + u2 * (w0 * z1 - w1 * z0)
     size = (abs(u0) + abs(u1) + abs(u2)) * (abs(w0) + abs(w1) + abs(w2)) * (abs(z0) + abs(z1) + abs(z2))
-    if abs(det) > 1e-9 * size:
-        return det < 0
-    return bool(np.linalg.det(np.array([[u0, u1, u2], [w0, w1, w2], [z0, z1, z2]])) < 0)
+    return det, size, u0, u1, u2, w0, w1, w2, z0, z1, z2
 
 
 def hexahedron(v) -> Shape:
@@ -252,11 +292,11 @@ def extrude(outline, axis: int, lo: float, hi: float) -> trimesh.Trimesh:
 def _extrude(outline, axis: int, lo: float, hi: float) -> Shape:
     """extrude() as a Shape."""
     outline = np.asarray(outline, dtype=float)
-    n, others = len(outline), [a for a in range(3) if a != axis]
-    v = np.empty((2 * n, 3))
-    v[:, others] = np.tile(outline, (2, 1))
-    v[:n, axis], v[n:, axis] = lo, hi
-    return _solid(v, _prism_faces(n))
+    n = len(outline)
+    v = np.empty((2, n, 3))
+    v[:, :, [a for a in range(3) if a != axis]] = outline
+    v[0, :, axis], v[1, :, axis] = lo, hi
+    return _solid(v.reshape(-1, 3), _prism_faces(n))
 
 
 @functools.cache
@@ -268,12 +308,21 @@ def _circle(sections: int) -> tuple[np.ndarray, np.ndarray]:
 
 def _cylinder_y(x, y, z, rx, rz, width, sections) -> Shape:
     """A closed elliptic cylinder, axis along y, centred at (x, y, z)."""
-    cos, sin = _circle(sections)
-    v = np.empty((2 * sections, 3))
-    v[:sections, 0] = v[sections:, 0] = x + rx * cos
-    v[:sections, 2] = v[sections:, 2] = z + rz * sin
-    v[:sections, 1], v[sections:, 1] = y - width / 2, y + width / 2
-    return _solid(v, _prism_faces(sections))
+    return _solid(_cylinder_vertices(x, y, z, rx, rz, width, *_circle(sections)), _prism_faces(sections))
+
+
+@numba.njit(cache=True, nogil=True)
+def _cylinder_vertices(x: float, y: float, z: float, rx: float, rz: float, width: float, cos: np.ndarray,
+                       sin: np.ndarray) -> np.ndarray:
+    """_cylinder_y's rings at y -+ width / 2 (x + rx cos, z + rz sin round each), compiled: a
+    frame's hundreds of wheels and rims paid numpy's per call cost several times over."""
+    n = len(cos)
+    v = np.empty((2 * n, 3))
+    for i in range(n):
+        v[i, 0] = v[n + i, 0] = x + rx * cos[i]
+        v[i, 1], v[n + i, 1] = y - width / 2, y + width / 2
+        v[i, 2] = v[n + i, 2] = z + rz * sin[i]
+    return v
 
 
 def wheel(x, y, r, width, sections=14, rx=None) -> Shape:
@@ -302,9 +351,15 @@ def rim(x, face, r, out, sections=8, rx=None) -> Shape:
     return _cylinder_y(x, face + out * RIM_PROUD / 2, r, rrx, rr, RIM_PROUD, sections)
 
 
+# SIZE_STATS and the paint shares as the samplers use them, made once (per draw they cost more
+# than the draws).
+_SIZE_ARRAYS = {cls: (np.array(mean), np.array(sd)) for cls, (mean, sd) in SIZE_STATS.items()}
+_CAR_PAINT_P, _PAINT_P = _CAR_PAINT_SHARE / _CAR_PAINT_SHARE.sum(), _PAINT_SHARE / _PAINT_SHARE.sum()
+
+
 def sample_size(cls: str, rng: np.random.Generator) -> tuple[float, float, float]:
     """(h, w, l) from a normal truncated at 2.5 sd, correlated through one shared 'scale' draw."""
-    mean, sd = (np.array(v) for v in SIZE_STATS[cls])
+    mean, sd = _SIZE_ARRAYS[cls]
     common = rng.standard_normal()
     z = np.clip(0.6 * common + 0.8 * rng.standard_normal(3), -2.5, 2.5)
     hwl = mean + z * sd
@@ -318,8 +373,7 @@ def sample_recipe(cls: str, rng: np.random.Generator) -> dict:
     if cls in ("Pedestrian", "Cyclist"):
         color = _CLOTHES[rng.integers(len(_CLOTHES))]
     else:
-        share = _CAR_PAINT_SHARE if cls == "Car" else _PAINT_SHARE
-        color = _PAINTS[rng.choice(len(_PAINTS), p=share / share.sum())]
+        color = _PAINTS[rng.choice(len(_PAINTS), p=_CAR_PAINT_P if cls == "Car" else _PAINT_P)]
     color = np.clip(color * rng.uniform(0.85, 1.15), 0.0, 1.0)
     return {"kind": cls.lower(), "dims": [h, w, l], "color": [round(float(c), 4) for c in color],
             "seed": int(rng.integers(2**31))}
@@ -331,18 +385,21 @@ def _chamfered(profile, half_w: float, c: float) -> Shape:
     p = np.asarray(profile, dtype=float)
     x = np.clip(p[:, 0], p[:, 0].min() + c, p[:, 0].max() - c)
     n = len(p)
-    sections = ((x, half_w), (x, -half_w), (p[:, 0], half_w - c), (p[:, 0], c - half_w))
-    return hull(np.concatenate([np.column_stack((xs, np.full(n, y), p[:, 1])) for xs, y in sections]))
+    pts = np.empty((4, n, 3))
+    pts[:2, :, 0], pts[2:, :, 0] = x, p[:, 0]
+    pts[:, :, 1] = np.array([half_w, -half_w, half_w - c, c - half_w])[:, None]
+    pts[:, :, 2] = p[:, 1]
+    return hull(pts.reshape(-1, 3))
 
 
 def _on_side(s: int, belt: tuple, top: tuple, yb: float, yt: float, zb: float, zt: float):
     """A pillar on the cabin's side s (+1 left): the band [belt] at the belt line and [top] at the
     roof, on the side's slanted plane, standing 12 mm proud of the glass."""
     n = np.array([0.0, s * (zt - zb), yb - yt])
-    n /= np.linalg.norm(n)
-    quad = np.array([[belt[0], s * yb, zb], [belt[1], s * yb, zb],
-                     [top[1], s * yt, zt], [top[0], s * yt, zt]])
-    return hexahedron(np.concatenate([quad - 0.005 * n, quad + 0.012 * n]))
+    n0, n1, n2 = (n / np.linalg.norm(n)).tolist()
+    quad = ((belt[0], s * yb, zb), (belt[1], s * yb, zb), (top[1], s * yt, zt), (top[0], s * yt, zt))
+    return hexahedron([(x - 0.005 * n0, y - 0.005 * n1, z - 0.005 * n2) for x, y, z in quad]
+                      + [(x + 0.012 * n0, y + 0.012 * n1, z + 0.012 * n2) for x, y, z in quad])
 
 
 def _mirror(s: int, x: float, inner: float, outer: float, z: float) -> Shape:
@@ -452,7 +509,7 @@ def _rear_pillars(quad: np.ndarray, share: float) -> list[Shape]:
     above them, counter-clockwise seen from behind), `share` of its width each, on the face's
     plane and standing 12 mm proud of the glass: a convex slab each, as every part is."""
     b0, b1, t1, t0 = quad
-    n = np.cross(b1 - b0, t0 - b0)
+    n = cross(b1 - b0, t0 - b0)
     n /= np.linalg.norm(n)
     bands = [np.array([b0, b0 + share * (b1 - b0), t0 + share * (t1 - t0), t0]),
              np.array([b1 - share * (b1 - b0), b1, t1, t1 - share * (t1 - t0)])]
@@ -693,6 +750,12 @@ def bicycle() -> list[Part]:
     """A bicycle in its rider's unit frame (x forward, wheels on z = 0, the rider's height 1):
     two wheels, the frame's tubes and the handlebar. Ridden (a cyclist) or parked
     (simgen.scenery's cycle stands), scaled to its owner's size by fit_parts."""
+    return list(_bicycle())
+
+
+@functools.cache
+def _bicycle() -> tuple[Part, ...]:
+    """bicycle()'s parts, the same for every bicycle: made once, read-only."""
     r = 0.19  # wheel radius relative to the rider's height
     xf, xb = 0.48, -0.48
     parts = [Part(m, TYRE) for x in (xf, xb) for m in spoked_wheel(x, 0.0, r, 0.03, 0.025)]
@@ -703,7 +766,9 @@ def bicycle() -> list[Part]:
                  (crank, bar), (bar, np.array([xf, 0, r])), (seat, bar)):
         parts.append(Part(_limb(a, b, 0.015), FRAME))
     parts.append(Part(_box(0.38, 0.42, -0.22, 0.22, 0.60, 0.64), FRAME))
-    return parts
+    for p in parts:
+        p.mesh.vertices.flags.writeable = False
+    return tuple(parts)
 
 
 def _cyclist(rng, c: Material) -> list[Part]:

@@ -26,6 +26,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 PARKING_WIDTH = 2.3
+_SCALARS = (int, float, np.number)  # one point's coordinates, as RoadLayout.xy takes them
 
 
 @dataclass(frozen=True)
@@ -143,15 +144,28 @@ class RoadLayout:
         return self.curvature * np.asarray(s, dtype=float)
 
     def xy(self, s, d) -> np.ndarray:
-        """World (x, y) of road coordinates (s, d), broadcasting."""
-        s, d = np.broadcast_arrays(np.asarray(s, dtype=float), np.asarray(d, dtype=float))
+        """World (x, y) of road coordinates (s, d), broadcasting. Elementwise, so the arrays
+        broadcast in the arithmetic itself (np.broadcast_arrays and np.stack cost more than it)."""
+        if isinstance(s, _SCALARS) and isinstance(d, _SCALARS):
+            return self._point_xy(float(s), float(d))
+        s, d = np.asarray(s, dtype=float), np.asarray(d, dtype=float)
         k = self.curvature
         psi = k * s
-        if k == 0.0:
-            cx, cy = s, np.zeros_like(s)
-        else:
-            cx, cy = np.sin(psi) / k, (1.0 - np.cos(psi)) / k
-        return np.stack([cx - d * np.sin(psi), cy + d * np.cos(psi)], axis=-1)
+        sin, cos = np.sin(psi), np.cos(psi)
+        cx, cy = (s, 0.0) if k == 0.0 else (sin / k, (1.0 - cos) / k)
+        out = np.empty(np.broadcast_shapes(s.shape, d.shape) + (2,))
+        out[..., 0] = cx - d * sin
+        out[..., 1] = cy + d * cos
+        return out
+
+    def _point_xy(self, s: float, d: float) -> np.ndarray:
+        """xy() of one point: the same operations on scalars, without the broadcasting set-up that
+        costs several times their arithmetic (a frame asks for thousands of single points)."""
+        k = self.curvature
+        psi = k * s
+        sin, cos = np.sin(psi), np.cos(psi)
+        cx, cy = (s, 0.0) if k == 0.0 else (sin / k, (1.0 - cos) / k)
+        return np.array([cx - d * sin, cy + d * cos])
 
     def s_of(self, x, y) -> np.ndarray:
         """Arc length s of the centre-line point nearest to world (x, y), broadcasting: on a
@@ -190,10 +204,22 @@ class RoadLayout:
         return across if along is None else along + across
 
     def surface_normal(self, x: float, y: float) -> np.ndarray:
-        """Unit upward normal of the road surface z = height(x, y) at one point: the grade along
-        times the gradient of s, plus the slope across times the gradient of d."""
+        """Unit upward normal of the road surface z = height(x, y) at one point."""
+        return self.surface(x, y)[1]
+
+    def surface(self, x: float, y: float) -> tuple[float, np.ndarray]:
+        """height() and surface_normal() at one point, from one evaluation of the profile and
+        the crown (for one point, their numpy calls cost more than their arithmetic)."""
         if self.flat:
-            return np.array([0.0, 0.0, 1.0])
+            return 0.0, np.array([0.0, 0.0, 1.0])
+        along, g = self.profile.height_and_grade(self.s_of(x, y)) if self.profile else (None, 0.0)
+        across, c = self._crown_height_and_slope(self.d_of(x, y)) if self.crown else (None, 0.0)
+        z = along if across is None else (across if along is None else along + across)
+        return float(z), self._normal(x, y, float(g), float(c))
+
+    def _normal(self, x: float, y: float, g: float, c: float) -> np.ndarray:
+        """The unit upward normal where the grade along is g and the slope across c: g times the
+        gradient of s plus c times the gradient of d."""
         k = self.curvature
         if k == 0.0:
             grad_s, grad_d = np.array([1.0, 0.0]), np.array([0.0, 1.0])
@@ -201,8 +227,6 @@ class RoadLayout:
             a, b = k * x, 1.0 - k * y  # ds/dx, ds/dy of s = atan2(a, b) / k
             grad_s = np.array([b, a]) / (a * a + b * b)
             grad_d = -np.sign(k) * np.array([x, y - 1.0 / k]) / np.hypot(x, y - 1.0 / k)
-        g = float(self.profile.height_and_grade(self.s_of(x, y))[1]) if self.profile else 0.0
-        c = float(self._crown_height_and_slope(self.d_of(x, y))[1]) if self.crown else 0.0
         gx, gy = g * grad_s + c * grad_d
         n = np.array([-gx, -gy, 1.0])
         return n / np.linalg.norm(n)
@@ -235,7 +259,4 @@ class RoadLayout:
         x, y = self.xy(s, d)
         yaw = float(self.heading(s)) + yaw_offset
         c, sn = np.cos(yaw), np.sin(yaw)
-        T = np.eye(4)
-        T[:3, :3] = [[c, -sn, 0.0], [sn, c, 0.0], [0.0, 0.0, 1.0]]
-        T[:3, 3] = [x, y, z]
-        return T
+        return np.array([[c, -sn, 0.0, x], [sn, c, 0.0, y], [0.0, 0.0, 1.0, z], [0.0, 0.0, 0.0, 1.0]], dtype=float)

@@ -10,6 +10,8 @@ height, across the road), and side streets keep their mouths free of parked cars
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import shapely
 
@@ -52,18 +54,19 @@ def _plain(value):
 
 
 def _footprint(pose: np.ndarray, l: float, w: float, margin: float = MARGIN) -> shapely.Polygon:
-    c = np.array([[l / 2, w / 2], [-l / 2, w / 2], [-l / 2, -w / 2], [l / 2, -w / 2]])
-    c += np.sign(c) * margin
-    xy = c @ pose[:2, :2].T + pose[:2, 3]
-    return shapely.Polygon(xy)
+    """The pose's l x w rectangle grown by `margin` each side, in plan view."""
+    hl, hw = l / 2 + margin, w / 2 + margin
+    c = np.array([[hl, hw], [-hl, hw], [-hl, -hw], [hl, -hw]])
+    return shapely.polygons(c @ pose[:2, :2].T + pose[:2, 3])
 
 
 class _Placer:
-    """Keeps the footprints placed so far and accepts only non-overlapping new ones. Each test is
-    one vectorised GEOS call over all footprints (the same predicate as one call per pair)."""
+    """Keeps the footprints placed so far and accepts only non-overlapping new ones. The static
+    obstacles are queried through an STRtree (the same intersects predicate, tested only where
+    the envelopes meet), the few placed footprints in one vectorised GEOS call."""
 
     def __init__(self, obstacles: list[Obstacle], reserved: list[shapely.Polygon]):
-        self.obstacles = np.array([o.polygon for o in obstacles], dtype=object)
+        self.tree = shapely.STRtree([o.polygon for o in obstacles])
         self.bases = np.array([o.base for o in obstacles], float)
         self.taken = list(reserved)
 
@@ -73,8 +76,8 @@ class _Placer:
         shapely.prepare(fp)
         if self.taken and shapely.intersects(fp, self.taken).any():
             return False
-        below = self.bases < pose[2, 3] + h
-        if below.any() and shapely.intersects(fp, self.obstacles[below]).any():
+        hits = self.tree.query(fp, predicate="intersects")
+        if (self.bases[hits] < pose[2, 3] + h).any():
             return False
         self.taken.append(fp)
         return True
@@ -91,9 +94,18 @@ def _recipe(cls: str, spec: SceneSpec, rng: np.random.Generator) -> dict:
 
 
 def _pick_class(mix: dict[str, float], rng: np.random.Generator) -> str:
-    names = sorted(mix)
-    p = np.array([mix[n] for n in names], dtype=float)
-    return names[int(rng.choice(len(names), p=p / p.sum()))]
+    names, p = _odds(tuple(sorted(mix.items())))
+    return names[int(rng.choice(len(names), p=p))]
+
+
+@functools.lru_cache(maxsize=64)
+def _odds(mix: tuple[tuple[str, float], ...]) -> tuple[tuple[str, ...], np.ndarray]:
+    """A class mix's names in order and their probabilities, made once per mix (per draw they
+    cost more than the draw)."""
+    p = np.array([w for _, w in mix], dtype=float)
+    p = p / p.sum()
+    p.flags.writeable = False  # shared by every draw from this mix
+    return tuple(n for n, _ in mix), p
 
 
 def _road_layout(spec: SceneSpec, v: dict) -> RoadLayout:
@@ -347,9 +359,9 @@ def sample_world(spec: SceneSpec, seed: int, frame_index: int) -> World:
     v = _values(spec, seed, frame_index)
     road = _road_layout(spec, v)
     scenery = _scenery_params(spec, v, road, seed, frame_index)
-    static, obstacles = build_scenery(scenery)
-    actors = _place_actors(spec, v, road, obstacles, factor_rng(seed, frame_index, "actors"),
-                           plan_frontage(scenery))
+    plan = plan_frontage(scenery)
+    static, obstacles = build_scenery(scenery, plan)
+    actors = _place_actors(spec, v, road, obstacles, factor_rng(seed, frame_index, "actors"), plan)
     _brake(actors, float(v["traffic.braking"]), factor_rng(seed, frame_index, "braking"))
     rig = _make_rig(spec, v, road, actors)
     ego_velocity = np.array([float(v["rig.ego_speed"]), 0.0, 0.0]) if rig.kind == "onboard" else np.zeros(3)

@@ -12,6 +12,7 @@ actor's mesh in this frame.
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -219,6 +220,6 @@ def fit_parts(parts: list[Part], h: float, w: float, l: float) -> list[Part]:
     scale = np.array([l, w, h]) / (hi - lo)
     shift = np.array([l / 2, w / 2, 0.0])
     fitted = (allv - lo) * scale - shift
-    ends = np.cumsum([len(v) for v in verts]).tolist()
+    ends = list(itertools.accumulate(len(v) for v in verts))
     return [Part(PartMesh(fitted[a:b], p.mesh.faces), p.material)
             for p, a, b in zip(parts, [0, *ends[:-1]], ends)]

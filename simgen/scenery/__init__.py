@@ -46,15 +46,24 @@ from .lots import POST_PITCH, POST_W, RAIL_DEPTH, RAIL_TOP  # noqa: F401
 from .parts import MARK_Z, VERGE_WIDTH  # noqa: F401
 
 
-def _merged(meshes: list[Shape | trimesh.Trimesh]) -> trimesh.Trimesh:
+def _merged(meshes: list[Shape | trimesh.Trimesh]) -> Shape:
     """One mesh of many: trimesh.util.concatenate's vertices and faces (stacked, faces offset)
     without its per-mesh type checks, visuals and metadata, which cost ~50 ms a frame."""
     starts = np.cumsum([0] + [len(m.vertices) for m in meshes[:-1]])
     faces = np.concatenate([m.faces + start for m, start in zip(meshes, starts)])
-    return trimesh.Trimesh(np.concatenate([m.vertices for m in meshes]), faces, process=False)
+    return Shape(np.concatenate([m.vertices for m in meshes]), faces)
 
 
-def build_scenery(params: dict) -> tuple[list[Part], list[Obstacle]]:
+def _static(out: _Meshes, road: RoadLayout) -> list[Part]:
+    """The scenery's parts, one trimesh per material, laid onto the road (drape_parts makes the
+    trimeshes of a road that is not flat, so none is made for the flat mesh before)."""
+    parts = [Part(_merged(ms), mat) for mat, ms in out.by_mat.items()]
+    if road.flat:
+        return [Part(trimesh.Trimesh(*p.mesh, process=False), p.material) for p in parts]
+    return drape_parts(parts, road)
+
+
+def build_scenery(params: dict, plan: Frontage | None = None) -> tuple[list[Part], list[Obstacle]]:
     """Static parts (world frame) and their footprints, from the scenery parameters.
 
     Everything is planned on a flat road and then laid onto the road's vertical profile
@@ -62,18 +71,18 @@ def build_scenery(params: dict) -> tuple[list[Part], list[Obstacle]]:
 
     `params["keep_clear"]` (optional): a list of (x, y) polygon vertices where no building, tree
     or pole may stand, e.g. the line of sight of an orbit camera to its target. With
-    `clutter.frontage` the sides are lots and side streets (plan_frontage), else one closed row.
+    `clutter.frontage` the sides are lots and side streets (plan_frontage, or `plan` where the
+    caller has it already), else one closed row.
     """
     road = RoadLayout(**params["road"])
     clutter = params["clutter"]
     ground, buildings, tree_factor, woods = ENVIRONMENTS[clutter.get("environment", "city")]
     out = _Meshes([shapely.Polygon(params["keep_clear"])] if params.get("keep_clear") else [])
-    plan = plan_frontage(params)
+    plan = plan_frontage(params) if plan is None else plan
     if plan is not None:
         build_frontage(road, plan, clutter, ground, int(params["seed"]), out)
         _furniture(road, clutter, int(params["seed"]), out)
-        parts = [Part(_merged(ms), mat) for mat, ms in out.by_mat.items()]
-        return drape_parts(parts, road), out.obstacles
+        return _static(out, road), out.obstacles
     rng = np.random.default_rng(params["seed"])
     _ground(road, ground, out)
     markings(road, out)
@@ -89,5 +98,4 @@ def build_scenery(params: dict) -> tuple[list[Part], list[Obstacle]]:
         if clutter["pole_spacing"] > 0:
             poles(road, side, curb, clutter["pole_spacing"], rng, out)
     _furniture(road, clutter, int(params["seed"]), out)
-    parts = [Part(_merged(ms), mat) for mat, ms in out.by_mat.items()]
-    return drape_parts(parts, road), out.obstacles
+    return _static(out, road), out.obstacles

@@ -4,16 +4,17 @@ bicycles parked at them, placed on the sidewalks of both street models after eve
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 
 import numpy as np
 import shapely
 import trimesh
 
 from ..materials import METAL, SIGN_BLUE, SIGN_RED, SIGN_WHITE, SIGN_YELLOW, TRIM, paint_material, signal_lens
-from ..meshes import Shape, bicycle, box, extrude
+from ..meshes import Shape, _box, _extrude, bicycle
 from ..road import RoadLayout
 from ..world import Material, Part, fit_parts
-from .parts import Obstacle, UNIT_CYLINDER, _Meshes, _placed, footprint
+from .parts import Obstacle, UNIT_CYLINDER, _Meshes, _placed, footprint, plan_hull
 
 
 # --- Street furniture (clutter.furniture) -----------------------------------------------------
@@ -90,9 +91,9 @@ def _regular(n: int, r: float, phase_deg: float) -> np.ndarray:
     return np.c_[r * np.cos(a), r * np.sin(a)]
 
 
-def _plate(poly: np.ndarray, x0: float, x1: float, z: float) -> trimesh.Trimesh:
+def _plate(poly: np.ndarray, x0: float, x1: float, z: float) -> Shape:
     """A flat plate of a convex outline (y, z about height z), facing +x from x0 to x1."""
-    return extrude(poly + [0.0, z], 0, x0, x1)
+    return _extrude(poly + [0.0, z], 0, x0, x1)
 
 
 def _column(x: float, y: float, r: float, z0: float, z1: float) -> Shape:
@@ -114,14 +115,15 @@ class _Furnisher:
         curb = self.road.right_curb if side < 0 else self.road.left_curb
         return self.road.pose(s, curb + side * inset, 0.0, yaw)
 
-    def add(self, parts: list[tuple[Material, Shape]], obstacles: list[Obstacle],
+    def add(self, parts: list[tuple[Material, Shape]], obstacles: Callable[[], list[Obstacle]],
             corner: bool = False) -> bool:
         """Adds the piece unless it stands in a keep-clear area (at a corner: a sight line only),
-        on an obstacle lower than its top, or on a piece placed before."""
+        on an obstacle lower than its top, or on a piece placed before; its obstacles are made
+        only for a piece placed."""
         fp, top = _extent(parts)
         if not self._free(fp, top, self.out.sight if corner else self.out.clear, self.placed):
             return False
-        self._put(parts, obstacles)
+        self._put(parts, obstacles())
         self.placed.append(fp)
         return True
 
@@ -137,10 +139,10 @@ class _Furnisher:
         return True
 
     def _free(self, fp: shapely.Polygon, top: float, keep_clear: list, placed: list) -> bool:
-        if any(fp.intersects(c) for c in keep_clear):
+        if keep_clear and shapely.intersects(fp, keep_clear).any():
             return False
         hits = self.tree.query(fp, predicate="intersects")
-        return not (np.any(self.bases[hits] < top) or any(fp.intersects(p) for p in placed))
+        return not (np.any(self.bases[hits] < top) or (placed and shapely.intersects(fp, placed).any()))
 
     def _put(self, parts: list[tuple[Material, Shape]], obstacles: list[Obstacle]) -> None:
         for mat, m in parts:
@@ -148,44 +150,72 @@ class _Furnisher:
         self.out.obstacles += obstacles
 
 
+def _grown(meshes: list[Shape], margin: float) -> list[Obstacle]:
+    """Obstacles: the meshes' footprints grown by `margin` (one vectorised buffer, with
+    Polygon.buffer's 16 segments a quadrant)."""
+    return [Obstacle(p) for p in shapely.buffer([footprint(m) for m in meshes], margin, quad_segs=16)]
+
+
 def _extent(parts: list[tuple[Material, Shape]]) -> tuple[shapely.Polygon, float]:
     """A piece's footprint (the convex hull of its vertices seen from above) and its top."""
     v = np.concatenate([m.vertices for _, m in parts])
-    return shapely.convex_hull(shapely.MultiPoint(v[:, :2])), float(v[:, 2].max())
+    return plan_hull(v[:, :2]), float(v[:, 2].max())
 
 
 def _sign(f: _Furnisher, side: int, s: float, kind: str) -> None:
     """A sign on its post behind the curb, facing the traffic on its side (the right side's
     faces look back along -s)."""
+    ch = f.road.curb_height
+    reach, local = _sign_local(kind, ch)
+    T = f.pose(side, s, reach, np.pi if side < 0 else 0.0)
+    parts = [(mat, _posed(m, T)) for mat, m in local]
+    f.add(parts, lambda: _grown([parts[0][1]], 0.1) + [
+        Obstacle(plan_hull(np.concatenate([m.vertices[:, :2] for _, m in parts[1:]])), base=ch + SIGN_LOWER_EDGE)])
+
+
+@functools.lru_cache(maxsize=64)
+def _sign_local(kind: str, ch: float) -> tuple[float, tuple[tuple[Material, Shape], ...]]:
+    """A sign's inset behind the curb (its plate's reach) and its post and plates in its own
+    frame: the same for every sign of a kind on curbs ch high, so made once."""
     (n, r, ph), outer_mat, inner, inner_mat = SIGNS[kind]
     outer = _regular(n, r, ph)
-    ch = f.road.curb_height
     z = ch + SIGN_LOWER_EDGE - outer[:, 1].min()
-    T = f.pose(side, s, SIDE_CLEARANCE + outer[:, 0].max(), np.pi if side < 0 else 0.0)
     post = _column(-0.02 - SIGN_POST_R, 0.0, SIGN_POST_R, ch, z + outer[:, 1].max())
     local = [(METAL, post), (METAL, _plate(outer, -0.02, 0.0, z)), (outer_mat, _plate(outer, 0.0, 0.003, z))]
     if inner is not None:
         local.append((inner_mat, _plate(_regular(*inner), 0.003, 0.006, z)))
-    parts = [(mat, _posed(m, T)) for mat, m in local]
-    plate = shapely.convex_hull(shapely.MultiPoint(np.concatenate([m.vertices[:, :2] for _, m in parts[1:]])))
-    f.add(parts, [Obstacle(footprint(parts[0][1]).buffer(0.1)),
-                  Obstacle(plate, base=ch + SIGN_LOWER_EDGE)])
+    return SIDE_CLEARANCE + outer[:, 0].max(), _frozen(local)
+
+
+def _frozen(local: list[tuple[Material, Shape]]) -> tuple[tuple[Material, Shape], ...]:
+    """Parts kept for every piece of furniture of a kind, their vertices made read-only."""
+    for _, m in local:
+        m.vertices.flags.writeable = False
+    return tuple(local)
 
 
 def _signal(f: _Furnisher, T: np.ndarray, lit: str) -> None:
     """A signal head on its mast at pose T (x: where the lamps face), `lit` the lamp that is on."""
-    ch, m = f.road.curb_height, SIGNAL_MAST_R
+    parts = [(mat, _posed(mesh, T)) for mat, mesh in _signal_local(f.road.curb_height, lit)]
+    f.add(parts, lambda: _grown([parts[0][1]], 0.1) + [
+        Obstacle(plan_hull(np.concatenate([x.vertices[:, :2] for _, x in parts[1:]])),
+                 base=f.road.curb_height + SIGNAL_LOWER_EDGE)], corner=True)
+
+
+@functools.lru_cache(maxsize=64)
+def _signal_local(ch: float, lit: str) -> tuple[tuple[Material, Shape], ...]:
+    """A signal's mast, board, head and lenses in its own frame (made once per curb height and
+    lamp lit)."""
+    m = SIGNAL_MAST_R
     z0 = ch + SIGNAL_LOWER_EDGE
     local = [(METAL, _column(0.0, 0.0, m, ch, z0 + 1.05)),
-             (TRIM, box(m + 0.20, m + 0.215, -0.275, 0.275, z0, z0 + 1.05)),
-             (TRIM, box(m, m + 0.25, -0.15, 0.15, z0 + 0.10, z0 + 0.95))]
+             (TRIM, _box(m + 0.20, m + 0.215, -0.275, 0.275, z0, z0 + 1.05)),
+             (TRIM, _box(m, m + 0.25, -0.15, 0.15, z0 + 0.10, z0 + 0.95))]
     for k, phase in enumerate(SIGNAL_PHASES):  # red on top
         colour = LENSES[phase][0 if phase == lit else 1]
         local.append((signal_lens(colour), _plate(_regular(8, 0.10, 22.5), m + 0.25, m + 0.265,
                                                    z0 + 0.795 - 0.27 * k)))
-    parts = [(mat, _posed(mesh, T)) for mat, mesh in local]
-    head = shapely.convex_hull(shapely.MultiPoint(np.concatenate([x.vertices[:, :2] for _, x in parts[1:]])))
-    f.add(parts, [Obstacle(footprint(parts[0][1]).buffer(0.1)), Obstacle(head, base=z0)], corner=True)
+    return _frozen(local)
 
 
 def _signals(f: _Furnisher, rng: np.random.Generator) -> None:
@@ -204,49 +234,65 @@ def _signals(f: _Furnisher, rng: np.random.Generator) -> None:
 
 def _bin(f: _Furnisher, side: int, s: float, colour) -> None:
     """A drum hung on the side of its post."""
-    ch = f.road.curb_height
     T = f.pose(side, s, SIDE_CLEARANCE + BIN_R)
-    local = [(METAL, _column(0.0, 0.0, SIGN_POST_R, ch, ch + BIN_TOP + 0.1)),
-             (paint_material("bin", colour), _column(SIGN_POST_R + BIN_R, 0.0, BIN_R, ch + BIN_TOP - BIN_H,
-                                                     ch + BIN_TOP))]
-    parts = [(mat, _posed(m, T)) for mat, m in local]
-    f.add(parts, [Obstacle(footprint(m).buffer(0.05)) for _, m in parts])
+    parts = [(mat, _posed(m, T)) for mat, m in _bin_local(f.road.curb_height, colour)]
+    f.add(parts, lambda: _grown([m for _, m in parts], 0.05))
+
+
+@functools.lru_cache(maxsize=64)
+def _bin_local(ch: float, colour: tuple) -> tuple[tuple[Material, Shape], ...]:
+    """A bin's post and drum in its own frame (made once per curb height and colour)."""
+    return _frozen([(METAL, _column(0.0, 0.0, SIGN_POST_R, ch, ch + BIN_TOP + 0.1)),
+                    (paint_material("bin", colour), _column(SIGN_POST_R + BIN_R, 0.0, BIN_R, ch + BIN_TOP - BIN_H,
+                                                            ch + BIN_TOP))])
 
 
 def _bollards(f: _Furnisher, side: int, s: float, n: int) -> None:
     """A row of n bollards along the curb from s, each with a white band below its top."""
-    ch = f.road.curb_height
+    (post_mat, post), (band_mat, band) = _bollard_local(f.road.curb_height)
     parts = []
     for k in range(n):
         T = f.pose(side, s + k * BOLLARD_PITCH, SIDE_CLEARANCE + BOLLARD_R)
-        parts += [(METAL, _posed(_column(0.0, 0.0, BOLLARD_R, ch, ch + BOLLARD_H), T)),
-                  (SIGN_WHITE, _posed(_column(0.0, 0.0, BOLLARD_R + 0.003, ch + BOLLARD_H - 0.15,
-                                              ch + BOLLARD_H - 0.08), T))]
-    f.add(parts, [Obstacle(footprint(m).buffer(0.1)) for _, m in parts[::2]])
+        parts += [(post_mat, _posed(post, T)), (band_mat, _posed(band, T))]
+    f.add(parts, lambda: _grown([m for _, m in parts[::2]], 0.1))
+
+
+@functools.lru_cache(maxsize=64)
+def _bollard_local(ch: float) -> tuple[tuple[Material, Shape], ...]:
+    """A bollard and its white band in its own frame (made once per curb height)."""
+    return _frozen([(METAL, _column(0.0, 0.0, BOLLARD_R, ch, ch + BOLLARD_H)),
+                    (SIGN_WHITE, _column(0.0, 0.0, BOLLARD_R + 0.003, ch + BOLLARD_H - 0.15, ch + BOLLARD_H - 0.08))])
 
 
 def _stands(f: _Furnisher, side: int, s: float, n: int, bikes: np.random.Generator) -> None:
     """n cycle stands across the sidewalk from s: two legs and a top bar each; then, where the
     stands were placed, the bicycles parked at them (their own random stream: the furniture drawn
     after them stays where it was)."""
-    ch, r, h, half = f.road.curb_height, STAND_R, STAND_H, STAND_L / 2
+    ch, half = f.road.curb_height, STAND_L / 2
     parts = []
     for k in range(n):
         T = f.pose(side, s + k * STAND_PITCH, SIDE_CLEARANCE + half, np.pi / 2)
-        for m in (box(-half, -half + 2 * r, -r, r, ch, ch + h), box(half - 2 * r, half, -r, r, ch, ch + h),
-                  box(-half, half, -r, r, ch + h - 2 * r, ch + h)):
-            parts.append((METAL, _posed(m, T)))
+        parts += [(mat, _posed(m, T)) for mat, m in _stand_local(ch)]
     parked = []  # (stand, side of its bar, heading) of each bicycle
     for k in range(n):
         for gap in (-BIKE_GAP, BIKE_GAP):
             if bikes.uniform() < STAND_OCCUPANCY:
                 parked.append((k, gap, np.pi / 2 if bikes.uniform() < 0.5 else -np.pi / 2))
-    if not f.add(parts, [Obstacle(footprint(m).buffer(0.1)) for _, m in parts]):
+    if not f.add(parts, lambda: _grown([m for _, m in parts], 0.1)):
         return
     for k, gap, yaw in parked:
         T = f.pose(side, s + k * STAND_PITCH + gap, SIDE_CLEARANCE + BIKE_L / 2, yaw)
         T[2, 3] += ch
         f.add_beside([(p.material, _posed(p.mesh, T)) for p in _parked_bicycle()], 0.05)
+
+
+@functools.lru_cache(maxsize=64)
+def _stand_local(ch: float) -> tuple[tuple[Material, Shape], ...]:
+    """A cycle stand's two legs and top bar in its own frame (made once per curb height)."""
+    r, h, half = STAND_R, STAND_H, STAND_L / 2
+    return _frozen([(METAL, m) for m in (_box(-half, -half + 2 * r, -r, r, ch, ch + h),
+                                         _box(half - 2 * r, half, -r, r, ch, ch + h),
+                                         _box(-half, half, -r, r, ch + h - 2 * r, ch + h))])
 
 
 @functools.cache

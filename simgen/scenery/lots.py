@@ -24,22 +24,37 @@ from .frontage import (AISLE, BACK_GARDEN, BLOCK_DEPTH, BOUNDARIES, BOUNDARY_MIN
                        STORE_DEPTH, STORE_HEIGHT, TREE_HEIGHT, WALL_HEIGHT, YARD_M2_PER_TREE,
                        YARD_SHRUBS_PER_TREE, _outer, cut)
 from .parts import (FACADES, Obstacle, QUAD, SPHERE_TOP, UNIT_BOX, UNIT_CYLINDER, UNIT_SPHERES, _Meshes,
-                    _placed, _spans, cross_street, flip, footprint, strip)
+                    _spans, cross_street, discs, flip, footprint, placed_many, strip, uniform)
 from .street import carriageway, markings, poles
+
+
+def _unit_box_gather() -> np.ndarray:
+    """Each UNIT_BOX vertex as indices into the ten corner values _qbox computes: x at 2 ix + iy,
+    y at 4 + 2 ix + iy, z at 8 + iz, i 1 where the vertex takes the axis's higher value."""
+    ix, iy, iz = (UNIT_BOX.vertices > UNIT_BOX.vertices.min(axis=0)).T.astype(int)
+    return np.column_stack((2 * ix + iy, 4 + 2 * ix + iy, 8 + iz))
+
+
+_UNIT_BOX_VALUES = [tuple(np.unique(axis).tolist()) for axis in UNIT_BOX.vertices.T]  # lower, higher
+_UNIT_BOX_GATHER = _unit_box_gather()
 
 
 def _qbox(road: RoadLayout, side: int, s0: float, s1: float, q0: float, q1: float, z: float,
           h: float) -> Shape:
     """A box over [s0, s1] along the road and q0..q1 metres behind the sidewalk of `side`, its
-    long axes along the road's heading at the box's centre."""
+    long axes along the road's heading at the box's centre: the unit box scaled, turned and
+    moved, each distinct corner coordinate computed once in plain floats and gathered (numpy's
+    per call cost was most of a box's)."""
     s, d = (s0 + s1) / 2, _outer(road, side) + side * (q0 + q1) / 2
-    psi = float(road.heading(s))
+    psi = road.curvature * s
     c, sn = np.cos(psi), np.sin(psi)
-    local = UNIT_BOX.vertices * [s1 - s0, q1 - q0, h]
+    (lx0, lx1), (ly0, ly1), (lz0, lz1) = ((u0 * e, u1 * e) for (u0, u1), e in
+                                          zip(_UNIT_BOX_VALUES, (s1 - s0, q1 - q0, h)))
     x, y = road.xy(s, d)
-    v = np.column_stack((x + c * local[:, 0] - sn * local[:, 1], y + sn * local[:, 0] + c * local[:, 1],
-                         local[:, 2] + z + h / 2))
-    return Shape(v, UNIT_BOX.faces)
+    corners = np.array([x + c * lx0 - sn * ly0, x + c * lx0 - sn * ly1, x + c * lx1 - sn * ly0,
+                        x + c * lx1 - sn * ly1, y + sn * lx0 + c * ly0, y + sn * lx0 + c * ly1,
+                        y + sn * lx1 + c * ly0, y + sn * lx1 + c * ly1, lz0 + z + h / 2, lz1 + z + h / 2])
+    return Shape(corners[_UNIT_BOX_GATHER], UNIT_BOX.faces)
 
 
 def _quad_polygon(road: RoadLayout, s0: float, s1: float, d0: float, d1: float) -> shapely.Polygon:
@@ -48,47 +63,64 @@ def _quad_polygon(road: RoadLayout, s0: float, s1: float, d0: float, d1: float) 
 
 
 def _add_building(out: _Meshes, rng: np.random.Generator, m: Shape) -> None:
-    if out.blocks(m):
+    fp = footprint(m)
+    if out.blocked(fp):
         return
     out.add(Material("facade", FACADES[int(rng.integers(len(FACADES)))], FACADE_REFLECTIVITY), m)
-    out.obstacles.append(Obstacle(footprint(m)))
+    out.obstacles.append(Obstacle(fp))
 
 
-def _tree(out: _Meshes, x: float, y: float, z: float, height: float, r: float, base: float,
-          trunk_r: float = 0.2) -> None:
-    """Trunk up to `base` above z, an ellipsoid crown of radius r from base to height."""
-    rz = max(0.5, (height - base) / 2)
-    at = shapely.Point(x, y)
-    crown_fp = at.buffer(r, 8)
-    if out.clear and any(crown_fp.intersects(c) for c in out.clear):
+def _trees(out: _Meshes, xy: np.ndarray, z: float, height, r, base, trunk_r: float) -> None:
+    """Trees at (n, 2) plan positions: trunks up to `base` above z, ellipsoid crowns of radius r
+    from base to height; those whose crowns would reach into a keep-clear area are left out.
+    Built all at once (placed_many, discs), with the bits of one tree at a time."""
+    if not len(xy):
         return
-    out.add(BARK, _placed(UNIT_CYLINDER, [trunk_r, trunk_r, base + rz], [x, y, z + (base + rz) / 2]))
-    out.add(FOLIAGE, _placed(UNIT_SPHERES[1], [r, r, rz], [x, y, z + base + rz]))
-    out.obstacles.append(Obstacle(at.buffer(trunk_r + 0.1, 4)))
-    out.obstacles.append(Obstacle(crown_fp, base=z + base))
+    height, r, base = np.broadcast_arrays(height, r, base)
+    x, y = xy[:, 0], xy[:, 1]
+    crowns = discs(x, y, r, 8)
+    keep = out.clear_of(crowns)
+    if not keep.any():
+        return
+    x, y, height, r, base, crowns = x[keep], y[keep], height[keep], r[keep], base[keep], crowns[keep]
+    rz = np.maximum(0.5, (height - base) / 2)
+    t = np.full(len(x), trunk_r)
+    out.add(BARK, placed_many(UNIT_CYLINDER, np.column_stack((t, t, base + rz)),
+                              np.column_stack((x, y, z + (base + rz) / 2))))
+    out.add(FOLIAGE, placed_many(UNIT_SPHERES[1], np.column_stack((r, r, rz)),
+                                 np.column_stack((x, y, z + base + rz))))
+    for trunk, crown, b in zip(discs(x, y, trunk_r + 0.1, 4), crowns, (z + base).tolist()):
+        out.obstacles += [Obstacle(trunk), Obstacle(crown, base=b)]
 
 
-def _shrub(out: _Meshes, x: float, y: float, z: float, r: float) -> None:
-    _ellipsoid(out, FOLIAGE, x, y, r, 0.7 * r, z + 0.7 * r)
+def _ellipsoids(out: _Meshes, mat: Material, xy: np.ndarray, r: np.ndarray, rz: np.ndarray,
+                cz: np.ndarray) -> None:
+    """Coarse ellipsoids of radii r across and rz up about (n, 2) plan positions and heights cz,
+    their footprints obstacles; those that would reach into a keep-clear area are left out."""
+    if not len(xy):
+        return
+    r, rz, cz = np.broadcast_arrays(r, rz, cz)
+    fps = discs(xy[:, 0], xy[:, 1], r, 4)
+    keep = out.clear_of(fps)
+    if not keep.any():
+        return
+    x, y, r, rz, cz = xy[keep, 0], xy[keep, 1], r[keep], rz[keep], cz[keep]
+    out.add(mat, placed_many(UNIT_SPHERES[0], np.column_stack((r, r, rz)), np.column_stack((x, y, cz))))
+    out.obstacles += [Obstacle(fp) for fp in fps[keep]]
 
 
-def _ellipsoid(out: _Meshes, mat: Material, x: float, y: float, r: float, rz: float, cz: float) -> None:
-    """A coarse ellipsoid of radius r across and rz up about (x, y, cz), its footprint an obstacle;
-    left out where it would reach into a keep-clear area."""
-    fp = shapely.Point(x, y).buffer(r, 4)
-    if not (out.clear and any(fp.intersects(c) for c in out.clear)):
-        out.add(mat, _placed(UNIT_SPHERES[0], [r, r, rz], [x, y, cz]))
-        out.obstacles.append(Obstacle(fp))
+def _shrubs(out: _Meshes, xy: np.ndarray, z: float, r: np.ndarray) -> None:
+    _ellipsoids(out, FOLIAGE, xy, r, 0.7 * r, z + 0.7 * r)
 
 
 def _small_trees(road: RoadLayout, side: int, s0: float, s1: float, q0: float, q1: float,
                  n: int, rng: np.random.Generator, out: _Meshes, base: tuple[float, float]) -> None:
-    """n small-crowned trees over [s0, s1] x [q0, q1] behind the sidewalk, crowns from `base`."""
-    outer, ch = _outer(road, side), road.curb_height
-    for _ in range(n):
-        h, r = rng.uniform(*SMALL_TREE_HEIGHT), rng.uniform(*SMALL_CROWN_RADIUS)
-        x, y = road.xy(rng.uniform(s0, s1), outer + side * rng.uniform(q0, q1))
-        _tree(out, x, y, ch, h, r, rng.uniform(*base), 0.12)
+    """n small-crowned trees over [s0, s1] x [q0, q1] behind the sidewalk, crowns from `base`;
+    each tree's draws in turn: height, crown radius, s, q, crown base."""
+    u = rng.random((n, 5))
+    xy = road.xy(uniform((s0, s1), u[:, 2]), _outer(road, side) + side * uniform((q0, q1), u[:, 3]))
+    _trees(out, xy, road.curb_height, uniform(SMALL_TREE_HEIGHT, u[:, 0]), uniform(SMALL_CROWN_RADIUS, u[:, 1]),
+           uniform(base, u[:, 4]), 0.12)
 
 
 def _boundary(road: RoadLayout, side: int, s0: float, s1: float, kind: str,
@@ -118,9 +150,10 @@ def _boundary_style(kind: str, rng: np.random.Generator) -> tuple[float, float, 
 
 
 def _add_solid(out: _Meshes, mat: Material, m: Shape) -> None:
-    if not out.blocks(m):
+    fp = footprint(m)
+    if not out.blocked(fp):
         out.add(mat, m)
-        out.obstacles.append(Obstacle(footprint(m)))
+        out.obstacles.append(Obstacle(fp))
 
 
 def _house_row(road: RoadLayout, side: int, s0: float, s1: float, q: float,
@@ -159,10 +192,10 @@ def _house_row(road: RoadLayout, side: int, s0: float, s1: float, q: float,
             lam = rng.uniform() * plot * q / YARD_M2_PER_TREE
             _small_trees(road, side, s + 1.0, s + plot - 1.0, 1.5, q - 1.0, rng.poisson(lam), rng, out,
                          (CLEAR_FOOTWAY, CLEAR_FOOTWAY))
-            outer = _outer(road, side)
-            for _ in range(rng.poisson(YARD_SHRUBS_PER_TREE * lam)):
-                x, y = road.xy(rng.uniform(s + 0.5, s + plot - 0.5), outer + side * rng.uniform(1.5, q - 0.5))
-                _shrub(out, x, y, ch, rng.uniform(*SHRUB_RADIUS))
+            u = rng.random((rng.poisson(YARD_SHRUBS_PER_TREE * lam), 3))  # each shrub's s, q, radius
+            xy = road.xy(uniform((s + 0.5, s + plot - 0.5), u[:, 0]),
+                         _outer(road, side) + side * uniform((1.5, q - 0.5), u[:, 1]))
+            _shrubs(out, xy, ch, uniform(SHRUB_RADIUS, u[:, 2]))
         s += plot
     return deepest
 
@@ -240,9 +273,9 @@ def _open_land(road: RoadLayout, lot: Lot, rng: np.random.Generator, out: _Meshe
     far = _across_block(road, lot, 0.0, rng, out, gardens=False)
     lam = (lot.s1 - lot.s0) * far / PARK_M2_PER_TREE
     outer = _outer(road, side)
-    for _ in range(rng.poisson(lam)):
-        x, y = road.xy(rng.uniform(lot.s0, lot.s1), outer + side * rng.uniform(2.0, far - 2.0))
-        _tree(out, x, y, ch, rng.uniform(*TREE_HEIGHT), rng.uniform(*CROWN_RADIUS), CLEAR_FOOTWAY, 0.25)
+    u = rng.random((rng.poisson(lam), 4))  # each tree's s, q, height, crown radius
+    xy = road.xy(uniform((lot.s0, lot.s1), u[:, 0]), outer + side * uniform((2.0, far - 2.0), u[:, 1]))
+    _trees(out, xy, ch, uniform(TREE_HEIGHT, u[:, 2]), uniform(CROWN_RADIUS, u[:, 3]), CLEAR_FOOTWAY, 0.25)
     s0, s1 = max(lot.s0, road.s_min), min(lot.s1, road.s_max)
     if guardrail > 0 and rng.uniform() < guardrail:
         _guardrail(road, side, s0, s1, out)
@@ -264,13 +297,14 @@ def _green(road: RoadLayout, lot: Lot, rng: np.random.Generator, out: _Meshes) -
     q1 = q0 + rng.uniform(*GREEN_DEPTH)
     s0, s1 = max(lot.s0, road.s_min), min(lot.s1, road.s_max)
     r_mean = sum(SHRUB_BELT_RADIUS) / 2
-    for q in np.arange(q0 + r_mean, q1, r_mean):
-        for s in np.arange(s0 + r_mean / 2, s1, r_mean):
-            r, h = rng.uniform(*SHRUB_BELT_RADIUS), rng.uniform(*SHRUB_BELT_HEIGHT)
-            jitter = rng.uniform(-r_mean / 3, r_mean / 3, 2)
-            across = max(q0 + r, min(q + jitter[1], q1 - r / 2))
-            x, y = road.xy(s + jitter[0], outer + side * across)
-            _ellipsoid(out, SHRUB_MASS, x, y, r, h / 2 / SPHERE_TOP, ch + h / 2)
+    q, s = (g.ravel() for g in np.meshgrid(np.arange(q0 + r_mean, q1, r_mean),
+                                          np.arange(s0 + r_mean / 2, s1, r_mean), indexing="ij"))
+    u = rng.random((len(q), 4))  # each shrub's radius, height and jitter along and across
+    r, h = uniform(SHRUB_BELT_RADIUS, u[:, 0]), uniform(SHRUB_BELT_HEIGHT, u[:, 1])
+    jitter = uniform((-r_mean / 3, r_mean / 3), u[:, 2:])
+    across = np.maximum(q0 + r, np.minimum(q + jitter[:, 1], q1 - r / 2))
+    xy = road.xy(s + jitter[:, 0], outer + side * across)
+    _ellipsoids(out, SHRUB_MASS, xy, r, h / 2 / SPHERE_TOP, ch + h / 2)
     _small_trees(road, side, s0, s1, q0 + 1.0, q1 - 1.0,
                  rng.poisson((s1 - s0) * (q1 - q0) / GREEN_M2_PER_TREE), rng, out,
                  (CLEAR_FOOTWAY, CLEAR_FOOTWAY))
@@ -299,10 +333,10 @@ def _lot(road: RoadLayout, lot: Lot, setback: float, rng: np.random.Generator, o
             q = PLANTING / 2 + i * (2 * STALL_L + AISLE + PLANTING)
             d = outer + side * q
             step = STALLS_PER_TREE * STALL_W / (1.0 - road.curvature * d)
-            for s in np.arange(s0 + 3.0 + rng.uniform(0, step), s1 - 3.0, step):
-                x, y = road.xy(s, d)
-                _tree(out, x, y, ch, rng.uniform(*SMALL_TREE_HEIGHT),
-                      rng.uniform(*SMALL_CROWN_RADIUS), CLEAR_FOOTWAY, 0.15)
+            ss = np.arange(s0 + 3.0 + rng.uniform(0, step), s1 - 3.0, step)
+            u = rng.random((len(ss), 2))  # each tree's height and crown radius
+            _trees(out, road.xy(ss, d), ch, uniform(SMALL_TREE_HEIGHT, u[:, 0]),
+                   uniform(SMALL_CROWN_RADIUS, u[:, 1]), CLEAR_FOOTWAY, 0.15)
         _boundary(road, side, s0 + 3.0, s1 - 3.0, rng.choice(["hedge", "none"]), rng, out)
         q = lot.depth + rng.uniform(3.0, 10.0)
         length = (s1 - s0) * rng.uniform(0.4, 0.9)
@@ -395,11 +429,13 @@ def _street_trees(road: RoadLayout, side: int, per_100m: float, rng: np.random.G
     ch, sw = road.curb_height, road.sidewalk_width
     curb = road.right_curb if side < 0 else road.left_curb
     inset = min(1.0, sw / 2)
-    for st in np.sort(rng.uniform(road.s_min, road.s_max, rng.poisson(per_100m * (road.s_max - road.s_min) / 100.0))):
-        h, r = rng.uniform(*TREE_HEIGHT), rng.uniform(*CROWN_RADIUS)
-        x, y = road.xy(st, _outer(road, side) - side * inset)
-        over_road = r > abs(_outer(road, side) - side * inset - curb)
-        _tree(out, x, y, ch, h, r, CLEAR_ROAD if over_road else rng.uniform(CLEAR_FOOTWAY, CLEAR_ROAD))
+    d = _outer(road, side) - side * inset
+    st = np.sort(rng.uniform(road.s_min, road.s_max, rng.poisson(per_100m * (road.s_max - road.s_min) / 100.0)))
+    h, r, base = (np.empty(len(st)) for _ in range(3))
+    for i in range(len(st)):  # the crown base is drawn only for crowns clear of the carriageway
+        h[i], r[i] = rng.uniform(*TREE_HEIGHT), rng.uniform(*CROWN_RADIUS)
+        base[i] = CLEAR_ROAD if r[i] > abs(d - curb) else rng.uniform(CLEAR_FOOTWAY, CLEAR_ROAD)
+    _trees(out, road.xy(st, d), ch, h, r, base, 0.2)
 
 
 def build_frontage(road: RoadLayout, plan: Frontage, clutter: dict, ground: Material,

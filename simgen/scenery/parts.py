@@ -4,6 +4,7 @@ footprints actors keep off (Obstacle)."""
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -38,16 +39,19 @@ def strip(road: RoadLayout, s: np.ndarray, d0: float, d1: float, z0: float, z1: 
     """A quad strip between lateral offsets d0 < d1 along s; horizontal at z0, or vertical
     from z0 to z1 (d0 == d1). Faces wound to face up (horizontal) or towards +d (vertical)."""
     n = len(s)
-    if z1 is None:
-        a = np.column_stack((road.xy(s, d0), np.full(n, z0)))
-        b = np.column_stack((road.xy(s, d1), np.full(n, z0)))
-    else:
-        a = np.column_stack((road.xy(s, d0), np.full(n, z1)))
-        b = np.column_stack((road.xy(s, d0), np.full(n, z0)))
-    v = np.concatenate([a, b])
+    v = np.empty((2 * n, 3))
+    v[:n, :2], v[n:, :2] = road.xy(s, d0), road.xy(s, d0 if z1 is not None else d1)
+    v[:n, 2], v[n:, 2] = (z0, z0) if z1 is None else (z1, z0)
+    return Shape(v, _strip_faces(n))
+
+
+@functools.cache
+def _strip_faces(n: int) -> np.ndarray:
+    """The faces of a strip of n samples a side (shared by every strip of that length: read-only)."""
     i = np.arange(n - 1)
     faces = np.concatenate([np.column_stack((i, i + 1, i + n)), np.column_stack((i + 1, i + n + 1, i + n))])
-    return Shape(v, faces)
+    faces.flags.writeable = False
+    return faces
 
 
 def flip(m: Shape) -> Shape:
@@ -62,7 +66,14 @@ def oriented_box(road: RoadLayout, s: float, d: float, z: float, l: float, w: fl
 
 
 def footprint(m: Shape | trimesh.Trimesh) -> shapely.Polygon:
-    return shapely.convex_hull(shapely.MultiPoint(m.vertices[:, :2]))
+    return plan_hull(np.asarray(m.vertices)[:, :2])
+
+
+def plan_hull(xy: np.ndarray) -> shapely.Polygon:
+    """The convex hull of (n, 2) points, taken of them as a line string: GEOS hulls the same
+    coordinates in the same order whatever holds them, and a multipoint first makes a point
+    geometry of each."""
+    return shapely.convex_hull(shapely.linestrings(xy))
 
 
 def plain(m: trimesh.Trimesh) -> Shape:
@@ -128,10 +139,26 @@ class _Meshes:
     def add(self, mat: Material, mesh: Shape | trimesh.Trimesh) -> None:
         self.by_mat.setdefault(mat, []).append(mesh)
 
+    def clear_of(self, footprints: np.ndarray) -> np.ndarray:
+        """Which footprints keep out of every keep-clear area: one vectorised test per area, of
+        the footprints whose envelopes meet its envelope (no others can meet it)."""
+        keep = np.ones(len(footprints), bool)
+        if not self.clear:
+            return keep
+        x0, y0, x1, y1 = shapely.bounds(footprints).T
+        for c in self.clear:
+            cx0, cy0, cx1, cy1 = c.bounds
+            near = np.flatnonzero((x0 <= cx1) & (x1 >= cx0) & (y0 <= cy1) & (y1 >= cy0))
+            keep[near[shapely.intersects(footprints[near], c)]] = False
+        return keep
+
     def blocks(self, mesh: Shape | trimesh.Trimesh) -> bool:
         """Whether the mesh would stand in a keep-clear area (a sight line, the cross street)."""
-        fp = footprint(mesh)
-        return any(fp.intersects(c) for c in self.clear)
+        return self.blocked(footprint(mesh))
+
+    def blocked(self, fp: shapely.Polygon) -> bool:
+        """Whether a footprint reaches into a keep-clear area (one vectorised test)."""
+        return bool(self.clear) and bool(shapely.intersects(fp, self.clear).any())
 
 
 # Unit meshes the frontage scales and places by plain vertex arithmetic (thousands per world:
@@ -144,6 +171,43 @@ SPHERE_TOP = float(UNIT_SPHERES[0].vertices[:, 2].max())  # the coarse sphere's 
 
 def _placed(unit: Shape, scale, at) -> Shape:
     return Shape(unit.vertices * np.asarray(scale) + np.asarray(at), unit.faces)
+
+
+def uniform(bounds: tuple[float, float], u: np.ndarray) -> np.ndarray:
+    """rng.uniform(*bounds) from the stream's next doubles u (rng.random): numpy's own lo + (hi -
+    lo) u, so draws taken at once have the bits and the order of draws taken one at a time."""
+    lo, hi = bounds
+    return lo + (hi - lo) * u
+
+
+def placed_many(unit: Shape, scale: np.ndarray, at: np.ndarray) -> Shape:
+    """_placed for (n, 3) scales and places at once, as one Shape (the same products and sums,
+    faces offset as merging the n Shapes offsets them): one numpy call for hundreds of shrubs."""
+    n, nv = len(at), len(unit.vertices)
+    v = unit.vertices * scale[:, None, :] + at[:, None, :]
+    f = unit.faces + nv * np.arange(n)[:, None, None]
+    return Shape(v.reshape(-1, 3), f.reshape(-1, 3))
+
+
+@functools.cache
+def _unit_ring(quad_segs: int) -> np.ndarray:
+    """GEOS's ring of a point buffered by 1 at the origin: the cosines and sines it uses (snapped
+    to 0 next to the axes), its start (1, 0) first and last."""
+    return shapely.get_coordinates(shapely.Point(0.0, 0.0).buffer(1.0, quad_segs))
+
+
+def discs(x: np.ndarray, y: np.ndarray, r: np.ndarray, quad_segs: int) -> np.ndarray:
+    """shapely.Point(x, y).buffer(r, quad_segs) for arrays of centres and radii: GEOS's own ring
+    (centre plus radius times its cosine and sine) in one vectorised call instead of a buffer
+    each, which cost most of a frame's frontage."""
+    ring = _unit_ring(quad_segs)
+    x, y = np.asarray(x, dtype=float)[:, None], np.asarray(y, dtype=float)[:, None]
+    r = np.asarray(r, dtype=float)[..., None]
+    coords = np.empty((len(x), len(ring), 2))
+    coords[..., 0] = x + r * ring[:, 0]
+    coords[..., 1] = y + r * ring[:, 1]
+    coords[:, [0, -1], 1] = y  # GEOS starts (and closes) the ring at (x + r, y) itself
+    return shapely.polygons(coords)
 
 
 def moved(m: Shape, at) -> Shape:

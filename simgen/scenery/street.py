@@ -77,10 +77,11 @@ def _buildings(road: RoadLayout, side: int, outer: float, setback: float, rng: n
         d = outer + side * (setback + depth / 2)
         m = oriented_box(road, sb + length / 2, d, road.curb_height, length, depth, height)
         sb += length + rng.choice([0.0, rng.uniform(2.0, 10.0)])
-        if out.blocks(m):
+        fp = footprint(m)
+        if out.blocked(fp):
             continue
         out.add(Material("facade", FACADES[int(rng.integers(len(FACADES)))], FACADE_REFLECTIVITY), m)
-        out.obstacles.append(Obstacle(footprint(m)))
+        out.obstacles.append(Obstacle(fp))
 
 
 def fences(road: RoadLayout, side: int, outer: float, out: _Meshes) -> None:
@@ -126,7 +127,8 @@ def poles(road: RoadLayout, side: int, curb: float, spacing: float, rng: np.rand
     for sp in np.arange(road.s_min + rng.uniform(0, spacing), road.s_max, spacing):
         x, y = road.xy(sp, curb + side * 0.5)
         pole = moved(_POLE, [x, y, ch + 3.5])
-        if out.blocks(pole):
+        fp = footprint(pole)
+        if out.blocked(fp):
             continue
         out.add(METAL, pole)
-        out.obstacles.append(Obstacle(footprint(pole).buffer(0.1)))
+        out.obstacles.append(Obstacle(fp.buffer(0.1)))

@@ -308,3 +308,35 @@ def test_a_person_shows_hair_from_behind_a_face_from_in_front_and_shoes_that_poi
         for (lo, hi), shin in zip(sorted(shoes, key=lambda b: b[0][1]), shins):
             ankle = shin.vertices[shin.vertices[:, 2] <= shin.vertices[:, 2].min() + 1e-9][:, 0].mean()
             assert hi[0] - ankle == pytest.approx(3 * (ankle - lo[0]), rel=1e-6)
+
+
+def _numpy_hull(pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """hull() in numpy: each face turned outward from the used points' mean, then renumbered."""
+    faces = ConvexHull(pts).simplices
+    used = np.zeros(len(pts), bool)
+    used[faces] = True
+    tri = pts[faces]
+    (u0, u1, u2), (w0, w1, w2) = (tri[:, 1] - tri[:, 0]).T, (tri[:, 2] - tri[:, 0]).T
+    normal = np.column_stack((u1 * w2 - u2 * w1, u2 * w0 - u0 * w2, u0 * w1 - u1 * w0))
+    inward = np.einsum("ij,ij->i", normal, tri.mean(axis=1) - pts[used].mean(axis=0)) < 0
+    faces = np.where(inward[:, None], faces[:, ::-1], faces)
+    return pts[used], (np.cumsum(used) - 1)[faces]
+
+
+def test_hull_turns_every_face_as_numpy_does():
+    """The compiled orientation gives numpy's faces to the bit, on prisms over profiles with
+    collinear corners (qhull then triangulates coplanar facets) as on random points."""
+    from simgen.meshes import hull
+
+    rng = np.random.default_rng(0)
+    for k in range(200):
+        n = int(rng.integers(4, 20))
+        if k % 2:
+            profile = rng.standard_normal((n, 2))
+            profile[: n // 2, 0] = profile[0, 0]
+            pts = np.concatenate([np.c_[profile[:, 0], np.full(n, y), profile[:, 1]] for y in (-0.8, 0.8)])
+        else:
+            pts = rng.standard_normal((n, 3)) * 10.0 ** rng.uniform(-2, 2, 3)
+        shape = hull(pts)
+        ref_v, ref_f = _numpy_hull(pts)
+        assert np.array_equal(shape.vertices, ref_v) and np.array_equal(shape.faces, ref_f)

@@ -249,3 +249,29 @@ def test_a_draped_wall_wears_one_continuous_facade():
     lowest = tris[front][..., 2].min()
     assert uv[front][..., 1].min() == pytest.approx(0.0, abs=1e-12)
     assert np.allclose(uv[front][..., 1], (tris[front][..., 2] - lowest) / tile[1])
+
+
+def test_subdivision_is_trimeshs_to_the_bit():
+    """The compiled subdivision gives trimesh.remesh.subdivide_to_size's vertices and faces."""
+    import trimesh
+
+    from simgen.relief import _subdivide
+
+    rng = np.random.default_rng(0)
+    for _ in range(10):
+        box = trimesh.creation.box(extents=rng.uniform(1.0, 40.0, 3))
+        box.apply_translation(rng.uniform(-50.0, 50.0, 3))
+        v, f = np.asarray(box.vertices), np.asarray(box.faces, dtype=np.int64)
+        ref_v, ref_f = trimesh.remesh.subdivide_to_size(v, f, MAX_EDGE)
+        new_v, new_f = _subdivide(v.copy(), f, MAX_EDGE)
+        assert np.array_equal(new_v, ref_v) and np.array_equal(new_f, ref_f)
+
+
+@pytest.mark.parametrize("curvature", [0.0, 0.004])
+def test_one_point_lies_where_the_arrays_put_it(curvature):
+    """xy() of single points (the scalar path) gives the bits of the same points in arrays."""
+    road = RoadLayout(curvature=curvature, lanes=1, lane_width=3.0, ego_lane=0, sidewalk_width=2.0,
+                      curb_height=0.15, parking=False, s_min=-100.0, s_max=100.0)
+    s, d = np.random.default_rng(1).uniform(-150.0, 150.0, (2, 50))
+    points = np.array([road.xy(a, b) for a, b in zip(s, d)])
+    assert points.tobytes() == road.xy(s, d).tobytes()
