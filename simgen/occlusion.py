@@ -49,6 +49,7 @@ SPAN_SHARE = 0.01
 GUARD_PX = 4096.0
 MIN_ASPECT = 1e-4
 WALK = 6  # steps across shared edges from a triangle seen at a pixel centre towards a sample
+_PENDING = 1 << 16  # samples on shared edges a frame resolves at most (the rest count as uncovered)
 # A pixel and its eight neighbours, row and column offsets.
 _DR = np.array([0, -1, 1, 0, 0, -1, -1, 1, 1])
 _DC = np.array([0, 0, 0, -1, 1, -1, 1, -1, 1])
@@ -130,85 +131,119 @@ def _setup(x, y, z, front, width, height, edges, plane, slack, low, centre, ok):
         ok[i] = True
 
 
-@numba.njit(cache=True, nogil=True)
-def _on_shared_edge(edges, plane, slack, centre, adj, ok, t, k, x, y):
-    """Depth bound at (x, y), a point within COVER_PX of edge k of triangle t and inside its other
-    two edges, where the triangle across that edge lies on its other side and has the point
-    inside its own other two edges: one of the two covers it. inf where not so."""
-    u = adj[t, k]
-    if u < 0 or not ok[u]:
-        return np.inf
-    if edges[t, k, 0] * centre[u, 0] + edges[t, k, 1] * centre[u, 1] + edges[t, k, 2] > -COVER_PX:
-        return np.inf  # folded back over t
-    shared, least = -1, np.inf
-    for j in range(3):
-        e = abs(edges[u, j, 0] * x + edges[u, j, 1] * y + edges[u, j, 2])
-        if e < least:
-            shared, least = j, e
-    if adj[u, shared] != t:
-        return np.inf
-    for j in range(3):
-        if j != shared and edges[u, j, 0] * x + edges[u, j, 1] * y + edges[u, j, 2] < COVER_PX:
+@numba.njit(cache=True, nogil=True, inline="always")
+def _walk(edges, plane, slack, adj, ok, t, x, y, steps):
+    """Depth bound of what covers (x, y), from triangle t across shared edges towards the point
+    (at most `steps` of them); inf where no cover is certain; -2 - (3 u + k) where the point lies
+    within COVER_PX of edge k of triangle u and inside its other two edges (`_across` decides).
+    The hot loop stays free of the rare case's array reads: llvm compiles it several times faster."""
+    for _ in range(steps + 1):
+        e0 = edges[t, 0, 0] * x + edges[t, 0, 1] * y + edges[t, 0, 2]
+        e1 = edges[t, 1, 0] * x + edges[t, 1, 1] * y + edges[t, 1, 2]
+        e2 = edges[t, 2, 0] * x + edges[t, 2, 1] * y + edges[t, 2, 2]
+        k, least = 0, e0
+        if e1 < least:
+            k, least = 1, e1
+        if e2 < least:
+            k, least = 2, e2
+        if least >= COVER_PX:
+            return plane[t, 0] * x + plane[t, 1] * y + plane[t, 2] + slack[t]
+        if least > -COVER_PX:
+            if (k == 0 or e0 >= COVER_PX) and (k == 1 or e1 >= COVER_PX) and (k == 2 or e2 >= COVER_PX):
+                return -2.0 - (3 * t + k)
             return np.inf
-    return max(plane[t, 0] * x + plane[t, 1] * y + plane[t, 2] + slack[t],
-               plane[u, 0] * x + plane[u, 1] * y + plane[u, 2] + slack[u])
+        if steps == 0:
+            return np.inf
+        t = adj[t, k]
+        if t < 0 or not ok[t]:
+            return np.inf
+    return np.inf
 
 
 @numba.njit(cache=True, nogil=True)
-def _certify(seen, edges, plane, slack, centre, adj, ok, samples, out):
+def _certify(seen, edges, plane, slack, adj, ok, samples, out, pending):
     """out[r, c]: the deepest bound over the pixel's samples of what covers each, inf where one
     has none (or no triangle of the layers is seen at the pixel centre). Each sample's cover is
-    searched from the triangles seen at the pixel and its neighbours (each once), walking across
-    shared edges towards the sample."""
+    searched among the triangles seen at the pixel and its neighbours (each once), then by
+    walking from them across shared edges towards the sample. Samples on a shared edge are left
+    to `_across`: rows of `pending` (pixel, sample, 3 u + k); returns how many."""
     H, W = seen.shape
     starts = np.empty(9, np.int64)
+    m = 0
     for r in range(H):
         for c in range(W):
             out[r, c] = np.inf
-            if seen[r, c] < 0 or not ok[seen[r, c]]:
+            own = seen[r, c]
+            if own < 0 or not ok[own]:
                 continue
-            n = 0
-            for j in range(9):
-                rr, cc = r + _DR[j], c + _DC[j]
-                if 0 <= rr < H and 0 <= cc < W and seen[rr, cc] >= 0 and ok[seen[rr, cc]]:
-                    known = False
-                    for q in range(n):
-                        known |= starts[q] == seen[rr, cc]
-                    if not known:
-                        starts[n] = seen[rr, cc]
-                        n += 1
-            worst = -np.inf
+            worst, n, waiting = -np.inf, 0, 0
             for s in range(samples.shape[0]):
                 x, y = c + samples[s, 0], r + samples[s, 1]
-                best = np.inf
-                for j in range(n):
-                    t = starts[j]
-                    for _ in range(WALK):
-                        e0 = edges[t, 0, 0] * x + edges[t, 0, 1] * y + edges[t, 0, 2]
-                        e1 = edges[t, 1, 0] * x + edges[t, 1, 1] * y + edges[t, 1, 2]
-                        e2 = edges[t, 2, 0] * x + edges[t, 2, 1] * y + edges[t, 2, 2]
-                        k, least = 0, e0
-                        if e1 < least:
-                            k, least = 1, e1
-                        if e2 < least:
-                            k, least = 2, e2
-                        if least >= COVER_PX:
-                            best = plane[t, 0] * x + plane[t, 1] * y + plane[t, 2] + slack[t]
-                            break
-                        if least > -COVER_PX:  # on edge k: are the other two clear?
-                            if ((k == 0 or e0 >= COVER_PX) and (k == 1 or e1 >= COVER_PX)
-                                    and (k == 2 or e2 >= COVER_PX)):
-                                best = _on_shared_edge(edges, plane, slack, centre, adj, ok, t, k, x, y)
-                            break
-                        t = adj[t, k]
-                        if t < 0 or not ok[t]:
-                            break
-                    if best < np.inf:
-                        break
-                worst = max(worst, best)
-                if worst == np.inf:
+                best = _walk(edges, plane, slack, adj, ok, own, x, y, 0)
+                mark = best if best < -1.0 else 0.0  # on a shared edge: the first such answer
+                if best == np.inf or mark < 0.0:
+                    best = np.inf
+                    if n == 0:  # the pixel's neighbours, gathered once
+                        for j in range(9):
+                            rr, cc = r + _DR[j], c + _DC[j]
+                            if 0 <= rr < H and 0 <= cc < W and seen[rr, cc] >= 0 and ok[seen[rr, cc]]:
+                                known = False
+                                for q in range(n):
+                                    known |= starts[q] == seen[rr, cc]
+                                if not known:
+                                    starts[n] = seen[rr, cc]
+                                    n += 1
+                    for steps in (0, WALK):
+                        for j in range(n):
+                            if best < np.inf or (j == 0 and steps == 0):  # own, directly: done above
+                                continue
+                            best = _walk(edges, plane, slack, adj, ok, starts[j], x, y, steps)
+                            if best < -1.0:
+                                mark = best if mark == 0.0 else mark
+                                best = np.inf
+                if best == np.inf and mark < 0.0 and m + waiting < pending.shape[0]:
+                    pending[m + waiting, 0], pending[m + waiting, 1] = r * W + c, s
+                    pending[m + waiting, 2] = int(-2.0 - mark)
+                    waiting += 1
+                elif best == np.inf:
+                    worst = np.inf
                     break
-            out[r, c] = worst
+                else:
+                    worst = max(worst, best)
+            if worst < np.inf:
+                out[r, c] = worst
+                m += waiting
+    return m
+
+
+@numba.njit(cache=True, nogil=True)
+def _across(edges, plane, slack, centre, adj, ok, samples, pending, out):
+    """The samples `pending` left on shared edges: a sample within COVER_PX of edge k of triangle
+    t and inside its other two edges is covered by t or by the triangle across that edge, where
+    that one lies on the edge's other side and has the sample inside its own other two edges
+    (llvmpipe covers a point of an edge two triangles share by exactly one of them); the deeper
+    of the two bounds counts, or inf."""
+    W = out.shape[1]
+    for i in range(pending.shape[0]):
+        p, s, tk = pending[i, 0], pending[i, 1], pending[i, 2]
+        r, c, t, k = p // W, p % W, tk // 3, tk % 3
+        x, y = c + samples[s, 0], r + samples[s, 1]
+        u = adj[t, k]
+        depth = np.inf
+        if u >= 0 and ok[u] and edges[t, k, 0] * centre[u, 0] + edges[t, k, 1] * centre[u, 1] + edges[t, k, 2] < -COVER_PX:
+            f0 = edges[u, 0, 0] * x + edges[u, 0, 1] * y + edges[u, 0, 2]
+            f1 = edges[u, 1, 0] * x + edges[u, 1, 1] * y + edges[u, 1, 2]
+            f2 = edges[u, 2, 0] * x + edges[u, 2, 1] * y + edges[u, 2, 2]
+            j, near = 0, abs(f0)  # u's edge along the shared one
+            if abs(f1) < near:
+                j, near = 1, abs(f1)
+            if abs(f2) < near:
+                j = 2
+            if (adj[u, j] == t and (j == 0 or f0 >= COVER_PX) and (j == 1 or f1 >= COVER_PX)
+                    and (j == 2 or f2 >= COVER_PX)):
+                depth = max(plane[t, 0] * x + plane[t, 1] * y + plane[t, 2] + slack[t],
+                            plane[u, 0] * x + plane[u, 1] * y + plane[u, 2] + slack[u])
+        out[r, c] = max(out[r, c], depth)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -275,8 +310,10 @@ def hidden(x: np.ndarray, y: np.ndarray, z: np.ndarray, front: np.ndarray, keys:
     edges, plane, centre = np.zeros((n, 3, 3)), np.zeros((n, 3)), np.zeros((n, 2))
     slack, low, ok = np.zeros(n), np.zeros(n), np.zeros(n, bool)
     _setup(x, y, z, front, W, H, edges, plane, slack, low, centre, ok)
-    bound = np.empty((H, W))
-    _certify(seen, edges, plane, slack, centre, adjacency(keys), ok, SAMPLES, bound)
+    bound, pending = np.empty((H, W)), np.empty((_PENDING, 3), np.int64)
+    adj = adjacency(keys)
+    m = _certify(seen, edges, plane, slack, adj, ok, SAMPLES, bound, pending)
+    _across(edges, plane, slack, centre, adj, ok, SAMPLES, pending[:m], bound)
     levels = max(1, int(W).bit_length())
     table = _TABLES.get((levels, H, W))
     if table is None:

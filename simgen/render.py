@@ -38,6 +38,7 @@ from dataclasses import dataclass, field  # noqa: E402
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 import pyrender  # noqa: E402
+from OpenGL import GL  # noqa: E402
 from pyrender.constants import RenderFlags  # noqa: E402
 
 from . import facets, instance_pass, occlusion, textures  # noqa: E402
@@ -194,12 +195,29 @@ class _Scene(pyrender.Scene):
         self._directional_light_nodes = _InsertionOrdered()
 
 
+class _ColourRenderer(pyrender.Renderer):
+    """pyrender's renderer for the colour pass alone (the instance pass gives the depth): it
+    resolves and reads the colour buffer as pyrender does, and leaves the depth buffer unread."""
+
+    def _read_main_framebuffer(self, scene, flags):
+        width, height = self._main_fb_dims
+        GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._main_fb_ms)
+        GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, self._main_fb)
+        GL.glBlitFramebuffer(0, 0, width, height, 0, 0, width, height, GL.GL_COLOR_BUFFER_BIT, GL.GL_LINEAR)
+        GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._main_fb)
+        channels, fmt = (4, GL.GL_RGBA) if flags & RenderFlags.RGBA else (3, GL.GL_RGB)
+        color = GL.glReadPixels(0, 0, width, height, fmt, GL.GL_UNSIGNED_BYTE)
+        return np.flip(np.frombuffer(color, np.uint8).reshape(height, width, channels), axis=0), None
+
+
 def renderer(width: int, height: int) -> pyrender.OffscreenRenderer:
-    """The process's renderer for this image size, created once. Keyed by process id too: a
-    forked child must not reuse its parent's GL context."""
+    """The process's renderer for this image size, created once, drawing colour passes only.
+    Keyed by process id too: a forked child must not reuse its parent's GL context."""
     key = (os.getpid(), width, height)
     if key not in _RENDERERS:
-        _RENDERERS[key] = pyrender.OffscreenRenderer(width, height)
+        r = pyrender.OffscreenRenderer(width, height)
+        r._renderer.__class__ = _ColourRenderer
+        _RENDERERS[key] = r
     return _RENDERERS[key]
 
 

@@ -86,6 +86,17 @@ def test_a_triangle_off_the_image_is_hidden_one_across_the_near_plane_is_kept():
     assert not occlusion.hidden(x, y, z, front, keys, _seen_wall())[2]
 
 
+_PLAIN: dict[tuple[int, int], pyrender.OffscreenRenderer] = {}
+
+
+def _plain(width: int, height: int) -> pyrender.OffscreenRenderer:
+    """pyrender's own renderer, with its own reads (render.renderer's reads colour only); kept
+    for the process: deleting one ends the EGL display the others share."""
+    if (width, height) not in _PLAIN:
+        _PLAIN[width, height] = pyrender.OffscreenRenderer(width, height)
+    return _PLAIN[width, height]
+
+
 @pytest.mark.parametrize("spec, frame", [("scenes/urban.yaml", 0), ("scenes/variations.yaml", 14),
                                          ("scenes/variations.yaml", 0)])
 def test_the_instance_pass_draws_as_pyrenders_segmentation_pass(spec, frame):
@@ -103,7 +114,7 @@ def test_the_instance_pass_draws_as_pyrenders_segmentation_pass(spec, frame):
         seg[scene.add(mesh, pose=i.draw.pose)] = (i.actor % 256, i.actor // 256, 0)
     scene.add_node(pyrender.Node(camera=built.scene.main_camera_node.camera,
                                  matrix=built.scene.get_pose(built.scene.main_camera_node)))
-    ids, depth = r.render(scene, flags=RenderFlags.SEG, seg_node_map=seg)
+    ids, depth = _plain(world.rig.width, world.rig.height).render(scene, flags=RenderFlags.SEG, seg_node_map=seg)
     assert np.array_equal(ids[..., 0] + 256 * ids[..., 1].astype(np.uint16), seen.instance)
     assert np.array_equal(depth, seen.depth)
     assert seen.instance.any()
