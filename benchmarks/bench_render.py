@@ -1,8 +1,9 @@
 """Camera rendering speed and complete-frame throughput of the scene generator.
 
 Prints (1) the world sampling time (scenery and actor meshes) and the render time per 1242x375
-frame of scenes/urban.yaml, split into scene build, colour pass (4x MSAA),
-segmentation+depth pass, sun shadows (Embree), the look and camera (fog/rain/sensor, exposure,
+frame of scenes/urban.yaml, split into scene build, segmentation+depth pass (simgen.instance_pass,
+drawn first), colour pass (4x MSAA, with the culling of its hidden triangles), sun shadows
+(Embree), the look and camera (fog/rain/sensor, exposure,
 noise, demosaicing; beside it the same with the camera's rectification off, the CFA on the output's
 own pixels, timed in the same loop) and the label derivation; (2) complete frames per second
 (sample + render + labels + all files, no LiDAR, and with the spec's LiDAR) of `simgen.generate`
@@ -42,17 +43,19 @@ def render_breakdown(spec, n: int) -> None:
         worlds.append(sample_world(spec, spec.seed, i))
         sample_ms.append(1000 * (time.perf_counter() - t0))
     r = renderer(worlds[0].rig.width, worlds[0].rig.height)
-    build_scene(worlds[0]).colour_pass(r)  # warm-up: shaders compile on the first render
+    warm = build_scene(worlds[0])  # warm-up: shaders compile on the first render
+    warm.colour_pass(r, warm.instance_pass(r))
     t = {"build": [], "colour": [], "seg+depth": [], "shadows": [], "look": [], "labels": [],
          "look, rectification off": []}
     for w in worlds:
         t0 = time.perf_counter()
         built = build_scene(w)
         t1 = time.perf_counter()
-        color = built.colour_pass(r)
+        seen = built.instance_pass(r)
         t2 = time.perf_counter()
-        inst, depth = built.instance_pass(r)
+        color = built.colour_pass(r, seen)
         t3 = time.perf_counter()
+        inst, depth = seen.instance, seen.depth
         lit = bool(built.flags & RenderFlags.RGBA)
         rgb = shade(w, color, depth, inst, built.casters) if lit else color[..., :3]
         t4 = time.perf_counter()
@@ -64,7 +67,7 @@ def render_breakdown(spec, n: int) -> None:
         apply_look(rgb, depth, w.rig.intrinsics(), w.weather, w.light, w.sensor, factor_rng(0, 0, "look"),
                    HEADROOM if lit else 1.0, dataclasses.replace(w.camera, rectified=False))
         t7 = time.perf_counter()
-        for k, a, b in (("build", t0, t1), ("colour", t1, t2), ("seg+depth", t2, t3),
+        for k, a, b in (("build", t0, t1), ("seg+depth", t1, t2), ("colour", t2, t3),
                         ("shadows", t3, t4), ("look", t4, t5), ("labels", t5, t6),
                         ("look, rectification off", t6, t7)):
             t[k].append(1000 * (b - a))

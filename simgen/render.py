@@ -1,12 +1,14 @@
 """Off-screen camera: colour, depth and instance ids of a world through its rig, with pyrender.
 
 One OffscreenRenderer per worker process, reused across frames (EGL; Mesa's llvmpipe on a
-machine without a GPU). Two passes per frame: a lit colour pass (4x MSAA) and a flat
-segmentation pass without multisampling, sampled at pixel centres, whose 8-bit colours carry the
-actor id exactly (id = R + 256 G) and whose depth buffer gives the depth image. In the
-segmentation pass each actor is one draw call (its parts merged); in the lit colour pass all
-actors together are one draw call per texture they wear (glass, plates, paint) and one for the
-rest (BuiltScene), as the static world is one per texture.
+machine without a GPU). Two passes per frame: first the instance pass (simgen.instance_pass),
+without multisampling, sampled at pixel centres, which names the triangle seen at each pixel:
+its actor gives the instance map, its depth the depth image; then the lit colour pass (4x MSAA),
+which leaves out the triangles the instance pass shows no sample of it can see
+(simgen.occlusion), with the same bytes. In the instance pass each actor is one draw call (its
+parts merged); in the lit colour pass all actors together are one draw call per texture they
+wear (glass, plates, paint) and one for the rest (BuiltScene), as the static world is one per
+texture.
 
 The lit looks (day, dusk) are shaded per face on the CPU and drawn unlit (see _Shader); on top
 of that the surfaces wear procedural textures (simgen.textures) mapped from world coordinates,
@@ -31,14 +33,15 @@ import os
 os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 
 from collections.abc import Iterable, MutableSet  # noqa: E402
-from dataclasses import dataclass  # noqa: E402
+from dataclasses import dataclass, field  # noqa: E402
 
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 import pyrender  # noqa: E402
+from OpenGL import GL  # noqa: E402
 from pyrender.constants import RenderFlags  # noqa: E402
 
-from . import facets, textures  # noqa: E402
+from . import facets, instance_pass, occlusion, textures  # noqa: E402
 from .camera import LUMA  # noqa: E402
 from .factors import factor_rng  # noqa: E402
 from .meshes import EMISSIVE  # noqa: E402
@@ -192,12 +195,29 @@ class _Scene(pyrender.Scene):
         self._directional_light_nodes = _InsertionOrdered()
 
 
+class _ColourRenderer(pyrender.Renderer):
+    """pyrender's renderer for the colour pass alone (the instance pass gives the depth): it
+    resolves and reads the colour buffer as pyrender does, and leaves the depth buffer unread."""
+
+    def _read_main_framebuffer(self, scene, flags):
+        width, height = self._main_fb_dims
+        GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._main_fb_ms)
+        GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, self._main_fb)
+        GL.glBlitFramebuffer(0, 0, width, height, 0, 0, width, height, GL.GL_COLOR_BUFFER_BIT, GL.GL_LINEAR)
+        GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._main_fb)
+        channels, fmt = (4, GL.GL_RGBA) if flags & RenderFlags.RGBA else (3, GL.GL_RGB)
+        color = GL.glReadPixels(0, 0, width, height, fmt, GL.GL_UNSIGNED_BYTE)
+        return np.flip(np.frombuffer(color, np.uint8).reshape(height, width, channels), axis=0), None
+
+
 def renderer(width: int, height: int) -> pyrender.OffscreenRenderer:
-    """The process's renderer for this image size, created once. Keyed by process id too: a
-    forked child must not reuse its parent's GL context."""
+    """The process's renderer for this image size, created once, drawing colour passes only.
+    Keyed by process id too: a forked child must not reuse its parent's GL context."""
     key = (os.getpid(), width, height)
     if key not in _RENDERERS:
-        _RENDERERS[key] = pyrender.OffscreenRenderer(width, height)
+        r = pyrender.OffscreenRenderer(width, height)
+        r._renderer.__class__ = _ColourRenderer
+        _RENDERERS[key] = r
     return _RENDERERS[key]
 
 
@@ -364,19 +384,61 @@ def _thermal(part: Part, moving: bool) -> tuple[float, float, float]:
     return (t, t, t)
 
 
+@dataclass
+class _Layer:
+    """A node of the colour pass whose triangles it may leave out (simgen.occlusion): the node,
+    the primitives its mesh was made with, and the shared vertices of each one's triangles
+    (equal keys, equal bits)."""
+
+    node: pyrender.Node
+    keys: list[np.ndarray]
+    primitives: list[pyrender.Primitive] = field(init=False)
+
+    def __post_init__(self):
+        self.primitives = list(self.node.mesh.primitives)
+
+    def triangles(self) -> int:
+        return sum(len(p.positions) // 3 for p in self.primitives)
+
+
+class _Mesh(pyrender.Mesh):
+    """A pyrender mesh that keeps its place in pyrender's draw order (transparent or not, as the
+    primitives it was made with say) whatever part of them the colour pass draws."""
+
+    def __init__(self, primitives: list[pyrender.Primitive]):
+        super().__init__(primitives)
+        self._transparent = super().is_transparent
+
+    @property
+    def is_transparent(self) -> bool:
+        return self._transparent
+
+
+@dataclass
+class _Actors:
+    """The actors as the two passes draw them: per actor its faces in view (actor frame; None for
+    an actor wholly out of view) for the instance pass, and where the colour pass draws each of
+    them (a layer and triangle indices in it); the colour pass's layers; all triangles (world
+    frame) as shadow casters, and each body's box, where it can hide the sky."""
+
+    own: list[np.ndarray | None]
+    drawn_as: list[tuple[int, np.ndarray] | None]
+    layers: list[_Layer]
+    casters: Occluders
+    reach: Reach
+
+
 def _actor_meshes(bodies: list[tuple[list[Part], np.ndarray, bool]], shader: _Shader, view: _View,
-                  rng: np.random.Generator | None = None, glow: np.ndarray | None = None
-                  ) -> tuple[list[pyrender.Mesh | None], pyrender.Node | None, Occluders, Reach]:
-    """One flat-shaded mesh per actor of its faces in `view` (parts in the actor frame; None for
-    an actor wholly out of view), all actors shaded in one vectorised pass in the world frame;
-    with `rng` (the lit look with textures) also all actors in one node for the colour pass,
-    glass, paint and plates wearing their textures (_texture_coordinates; one primitive per
-    texture, where one per actor and texture would cost pyrender a draw call each); all their
-    triangles (world frame) as shadow casters; and each body's box, where it can hide the sky.
-    `glow` (P, 3): what each part emits in the lit look."""
+                  rng: np.random.Generator | None = None, glow: np.ndarray | None = None) -> _Actors:
+    """Each actor's faces in `view` (parts in the actor frame), all actors shaded in one
+    vectorised pass in the world frame; drawn by the colour pass as one flat-shaded layer per
+    actor, or with `rng` (the lit look with textures) all actors in one layer, glass, paint and
+    plates wearing their textures (_texture_coordinates; one primitive per texture, where one per
+    actor and texture would cost pyrender a draw call each). `glow` (P, 3): what each part emits
+    in the lit look."""
     if not bodies:
-        return ([], None, Occluders.empty(),
-                Reach(np.zeros((0, 4, 4)), np.zeros((0, 3)), np.zeros((0, 3))))
+        return _Actors([], [], [], Occluders.empty(),
+                       Reach(np.zeros((0, 4, 4)), np.zeros((0, 3)), np.zeros((0, 3))))
     parts = [p for b, _, _ in bodies for p in b]
     vertices, faces = facets.shared(parts)  # each part in its actor's frame
     own_tris, own_n = facets.faceted(vertices, faces)  # row by row: the same bits as actor by actor
@@ -392,11 +454,12 @@ def _actor_meshes(bodies: list[tuple[list[Part], np.ndarray, bool]], shader: _Sh
     casters = Occluders.of_mesh(parts, world_v, faces)
     seen = view.faces(world_v, faces)
     own_seen = np.split(seen, ends)
+    own = [t[s] if s.any() else None for (t, _), s in zip(geo, own_seen)]
     # Colours, bent normals and texture coordinates only for the actors with a face in view
     # (`sel`: all their faces): each is a face's or a part's own, the same bits as over all actors.
     visible = [i for i, s in enumerate(own_seen) if s.any()]
     if not visible:
-        return [None] * len(bodies), None, casters, reach
+        return _Actors(own, [None] * len(bodies), [], casters, reach)
     in_view = np.zeros(len(bodies), bool)
     in_view[visible] = True
     sel = np.repeat(in_view, counts)
@@ -417,16 +480,22 @@ def _actor_meshes(bodies: list[tuple[list[Part], np.ndarray, bool]], shader: _Sh
         rgba = shader.colors(seen_parts, seen_tris, seen_n, False)
     if rng is None:
         colours = dict(zip(visible, np.split(rgba, seen_ends)))
-        own = [pyrender.Mesh([_primitive(t[s], shader.gl_normals(n[s]), colours[i][s], _PLAIN)])
-               if s.any() else None for i, ((t, n), s) in enumerate(zip(geo, own_seen))]
-        return own, None, casters, reach
+        own_faces = np.split(faces, ends)
+        layers = [_Layer(pyrender.Node(mesh=_Mesh([_primitive(t[s], shader.gl_normals(n[s]), colours[i][s], _PLAIN)]),
+                                       matrix=bodies[i][1]), [own_faces[i][s]])
+                  for i, ((t, n), s) in enumerate(zip(geo, own_seen)) if s.any()]
+        drawn_as = [None] * len(bodies)
+        for k, i in enumerate(visible):
+            drawn_as[i] = (k, np.arange(int(own_seen[i].sum())))
+        return _Actors(own, drawn_as, layers, casters, reach)
     # Each actor draws a shift of its glass and paint and a plate of the plates' tile.
     shift = np.repeat(rng.uniform(0.0, 1.0, len(bodies)), counts)[sel]
     plate = np.repeat(rng.integers(textures.PLATES_PER_TILE, size=len(bodies)), counts)[sel]
     seen = seen[sel]  # from here on, of the faces of `sel`
-    prims, plain = [], seen.copy()
+    prims, keys, order, plain = [], [], [], seen.copy()
     gain = np.array([textures.MAX_GAIN] * 3 + [1.0])
     worn = _texture_coordinates(seen_parts, own_tris[sel], own_n[sel], shift, plate)
+    sel_faces = faces[sel]
     # The merged mesh sits at the actors' centroid, not at the static world's origin: pyrender
     # draws the nodes farthest first, and two nodes at one distance in the order of a set (of
     # objects hashed by address), which would decide run by run who wins a depth tie (a tyre on
@@ -439,12 +508,19 @@ def _actor_meshes(bodies: list[tuple[list[Part], np.ndarray, bool]], shader: _Sh
         if shown.any():
             prims.append(_primitive(local[idx[shown]], None, rgba[idx[shown]] * gain, _textured(kind, 0),
                                     uv[shown]))
+            keys.append(sel_faces[idx[shown]])
+            order.append(idx[shown])
     if plain.any():
         prims.append(_primitive(local[plain], None, rgba[plain], _PLAIN))
-    merged = pyrender.Node(mesh=pyrender.Mesh(prims), translation=origin)  # `visible`: a face at least
-    # The instance pass sets one colour per actor: its own meshes need no colours.
-    return ([pyrender.Mesh([_primitive(t[s], None, None, _PLAIN)]) if s.any() else None
-             for (t, _), s in zip(geo, own_seen)], merged, casters, reach)
+        keys.append(sel_faces[plain])
+        order.append(np.flatnonzero(plain))
+    merged = _Layer(pyrender.Node(mesh=_Mesh(prims), translation=origin), keys)  # `visible`: a face at least
+    at = np.full(len(seen), -1)
+    at[np.concatenate(order)] = np.arange(len(seen[seen]))
+    in_sel = np.cumsum(sel) - 1  # each face's place among the faces of `sel`
+    drawn_as = [(0, at[in_sel[np.flatnonzero(s) + start]]) if s.any() else None
+                for s, start in zip(own_seen, np.r_[0, ends])]
+    return _Actors(own, drawn_as, [merged], casters, reach)
 
 
 def _texture_coordinates(parts: list[Part], tris: np.ndarray, normals: np.ndarray, shift: np.ndarray,
@@ -545,7 +621,7 @@ def _planar_uv(tris: np.ndarray, normals: np.ndarray, tile: tuple[float, float],
 
 
 def _static_mesh(parts: list[Part], shader: _Shader, world: World, view: _View
-                 ) -> tuple[pyrender.Mesh | None, Occluders]:
+                 ) -> tuple[_Layer | None, Occluders]:
     """The static world's faces in `view`, one primitive per texture tile (and one for untextured
     faces; None where no face is in view), and all its triangles as shadow casters."""
     vertices, faces = facets.shared(parts)
@@ -557,9 +633,9 @@ def _static_mesh(parts: list[Part], shader: _Shader, world: World, view: _View
     rgba[seen] = shader.colors(parts, tris, normals, False, layout.gain, only=seen)
     if shader.mode != "lit" or not world.appearance.textures:
         prims = [_primitive(tris[seen], shader.gl_normals(normals[seen]), rgba[seen], _PLAIN)]
-        return (pyrender.Mesh(prims) if seen.any() else None), casters
+        return (_Layer(pyrender.Node(mesh=_Mesh(prims)), [faces[seen]]) if seen.any() else None), casters
     first = np.cumsum([0] + [len(p.mesh.faces) for p in parts])
-    prims, plain = [], seen.copy()
+    prims, keys, plain = [], [], seen.copy()
     for w in layout.wearing:
         own = slice(first[w.part], first[w.part + 1])  # the part's faces
         plain[own] = False
@@ -573,9 +649,11 @@ def _static_mesh(parts: list[Part], shader: _Shader, world: World, view: _View
             uv = _planar_uv(t[shown], n[shown], w.tile, w.shift)
         colour = rgba[own][w.faces][shown] * np.array([textures.MAX_GAIN] * 3 + [1.0])
         prims.append(_primitive(t[shown], None, colour, _textured(w.kind, w.variant), uv))  # lit: flat
+        keys.append(faces[own][w.faces][shown])
     if plain.any():
         prims.append(_primitive(tris[plain], None, rgba[plain], _PLAIN))
-    return (pyrender.Mesh(prims) if prims else None), casters
+        keys.append(faces[plain])
+    return (_Layer(pyrender.Node(mesh=_Mesh(prims)), keys) if prims else None), casters
 
 
 _DOME_RADIUS = 350.0  # m, inside ZFAR
@@ -598,9 +676,9 @@ def _sky_texture(rng: np.random.Generator, cover: float, headroom: float) -> np.
     return np.clip(np.round((sky / headroom) ** (1 / 2.2) * 255), 0, 255).astype(np.uint8)
 
 
-def _sky_dome(world: World, headroom: float) -> pyrender.Mesh:
-    """A textured dome around the camera for the lit looks (not in the segmentation pass: its
-    pixels keep depth 0 and instance 0)."""
+def _sky_dome(world: World, headroom: float, eye: np.ndarray) -> _Layer:
+    """A textured dome around the camera (at `eye`) for the lit looks (not in the instance pass:
+    its pixels keep depth 0 and instance 0)."""
     rng = factor_rng(world.seed, world.frame_index, "sky")
     az = np.linspace(0, 2 * np.pi, 49)
     el = np.linspace(_DOME_LOW, np.pi / 2, 13)
@@ -614,45 +692,116 @@ def _sky_dome(world: World, headroom: float) -> pyrender.Mesh:
     tex = pyrender.Texture(source=_sky_texture(rng, world.appearance.cloud_cover, headroom),
                            source_channels="RGB")
     mat = pyrender.MetallicRoughnessMaterial(baseColorTexture=tex, metallicFactor=0.0, doubleSided=True)
-    return pyrender.Mesh([_primitive(tris, None, np.ones((len(tris), 4)), mat, uv)])  # lit looks: flat
+    mesh = _Mesh([_primitive(tris, None, np.ones((len(tris), 4)), mat, uv)])  # lit looks: flat
+    return _Layer(pyrender.Node(mesh=mesh, matrix=np.r_[np.c_[np.eye(3), eye], [[0, 0, 0, 1]]]), [faces])
 
 
-def _seg_code(actor_id: int) -> tuple[int, int, int]:
-    """The segmentation colour that carries an actor id exactly (id = R + 256 G)."""
-    return (actor_id % 256, actor_id // 256, 0)
+@dataclass
+class _Instance:
+    """A node of the instance pass: what it draws, the actor id its pixels carry (0 for the static
+    world), and where the colour pass draws its triangles (a layer and the triangles' indices
+    there; None where it leaves them out of the culling)."""
+
+    draw: instance_pass.Draw
+    actor: int
+    drawn_as: tuple[int, np.ndarray] | None
+
+
+@dataclass
+class Seen:
+    """The instance pass: per pixel the actor id (0 background and static world), the depth
+    (metres, 0 where no surface) and the colour pass's triangle seen at the pixel centre (its
+    number over the layers, -1 where none of theirs)."""
+
+    instance: np.ndarray  # (H, W) uint16
+    depth: np.ndarray  # (H, W) float32
+    triangle: np.ndarray  # (H, W) int64
 
 
 @dataclass
 class BuiltScene:
-    """A world's pyrender scene at t = 0 with what its two passes need: the segmentation map
-    (node -> colour), the colour pass's render flags, what darkens that pass (shadow casters, the
-    actors' reach), and, where the colour pass draws all actors as one textured mesh, each
-    actor's own mesh (drawn by the instance pass only) and that one mesh (by the colour pass)."""
+    """A world's pyrender scene at t = 0 (what the colour pass draws) with what its two passes
+    need: the nodes of the instance pass, the colour pass's render flags, its layers (the nodes
+    whose hidden triangles it leaves out), and what darkens it (shadow casters, the actors'
+    reach)."""
 
     scene: pyrender.Scene
-    seg: dict
+    instances: list[_Instance]
     flags: int
+    layers: list[_Layer]
     casters: Casters
-    actor_meshes: list[pyrender.Mesh]
-    colour_actors: pyrender.Mesh | None = None
 
-    def colour_pass(self, r: pyrender.OffscreenRenderer) -> np.ndarray:
-        """The colour image (RGBA in the lit look: alpha is the light that is not direct sun)."""
-        self._show_own(self.colour_actors is None)
+    def instance_pass(self, r: pyrender.OffscreenRenderer) -> Seen:
+        """Actor ids, depth and triangles seen. Depth from this single-sample pass: the
+        multisampled pass's depth is that of sample 0, a third of a pixel off the pixel centre."""
+        camera = self.scene.main_camera_node
+        first = np.cumsum([0, *(layer.triangles() for layer in self.layers)])
+        view = np.linalg.inv(self.scene.get_pose(camera))
+        order = instance_pass.order([i.draw for i in self.instances], self.scene.get_pose(camera)[:3, 3])
+        todo = [self.instances[k] for k in order]
+        r._platform.make_current()
+        ids, z = instance_pass.draw([i.draw for i in todo], view, self._projection(r), r.viewport_width,
+                                    r.viewport_height)
+        r._platform.make_uncurrent()
+        actor = np.concatenate([[0], *(np.full(len(i.draw.tris), i.actor) for i in todo)]).astype(np.uint16)
+        triangle = np.concatenate([[-1], *(np.full(len(i.draw.tris), -1) if i.drawn_as is None
+                                           else first[i.drawn_as[0]] + i.drawn_as[1] for i in todo)])
+        return Seen(np.take(actor, ids), _metres(z, camera.camera), np.take(triangle.astype(np.int64), ids))
+
+    def colour_pass(self, r: pyrender.OffscreenRenderer, seen: Seen | None = None) -> np.ndarray:
+        """The colour image (RGBA in the lit look: alpha is the light that is not direct sun);
+        with `seen`, the layers' hidden triangles left out."""
+        hidden = None if seen is None else self._hidden(r, seen.triangle)
+        first = 0
+        for layer in self.layers:
+            n = layer.triangles()
+            layer.node.mesh.primitives = (layer.primitives if hidden is None
+                                          else _shown(layer.primitives, ~hidden[first:first + n]))
+            first += n
         return r.render(self.scene, flags=self.flags)[0]
 
-    def instance_pass(self, r: pyrender.OffscreenRenderer) -> tuple[np.ndarray, np.ndarray]:
-        """(H, W) uint16 actor ids and float depth. Depth from this single-sample pass: the
-        multisampled pass's depth is that of sample 0, a third of a pixel off the pixel centre."""
-        self._show_own(True)
-        ids, depth = r.render(self.scene, flags=RenderFlags.SEG, seg_node_map=self.seg)
-        return ids[..., 0].astype(np.uint16) + 256 * ids[..., 1].astype(np.uint16), depth
+    def _projection(self, r: pyrender.OffscreenRenderer) -> np.ndarray:
+        return self.scene.main_camera_node.camera.get_projection_matrix(r.viewport_width, r.viewport_height)
 
-    def _show_own(self, on: bool) -> None:
-        for m in self.actor_meshes:
-            m.is_visible = on
-        if self.colour_actors is not None:
-            self.colour_actors.is_visible = not on
+    def _hidden(self, r: pyrender.OffscreenRenderer, triangle: np.ndarray) -> np.ndarray:
+        """(n,) bool over the layers' triangles: those that win no sample of the colour pass."""
+        clip = self._projection(r) @ np.linalg.inv(self.scene.get_pose(self.scene.main_camera_node))
+        corners, keys, base = [], [], 0
+        for layer in self.layers:
+            at = clip @ self.scene.get_pose(layer.node)
+            corners += [occlusion.screen(p.positions.reshape(-1, 3, 3), at, r.viewport_width, r.viewport_height)
+                        for p in layer.primitives]
+            k = np.concatenate(layer.keys).astype(np.int64)
+            keys.append(k + base)
+            base += int(k.max()) + 1 if len(k) else 0
+        x, y, z, front = (np.concatenate(c) for c in zip(*corners))
+        return occlusion.hidden(x, y, z, front, np.concatenate(keys), triangle)
+
+
+def _shown(primitives: list[pyrender.Primitive], keep: np.ndarray) -> list[pyrender.Primitive]:
+    """The primitives with only the triangles `keep` (over all of theirs, in order) left."""
+    out, first = [], 0
+    for p in primitives:
+        n = len(p.positions) // 3
+        k = keep[first:first + n]
+        first += n
+        if k.all():
+            out.append(p)
+        elif k.any():
+            corner = np.repeat(k, 3)
+            out.append(pyrender.Primitive(
+                positions=p.positions[corner], normals=None if p.normals is None else p.normals[corner],
+                color_0=None if p.color_0 is None else p.color_0[corner],
+                texcoord_0=None if p.texcoord_0 is None else p.texcoord_0[corner], material=p.material))
+    return out
+
+
+def _metres(z: np.ndarray, camera: pyrender.Camera) -> np.ndarray:
+    """Camera z (metres) of window depths, 0 where none (1): pyrender's arithmetic, in float32."""
+    d = 2.0 * z - 1.0
+    out = (2.0 * camera.znear * camera.zfar) / (camera.zfar + camera.znear - d * (camera.zfar - camera.znear))
+    out[z == 1.0] = 0.0
+    return out
 
 
 def _stop_lamp_glow(actors: list, bodies: list[tuple[list[Part], np.ndarray, bool]]
@@ -674,38 +823,43 @@ def build_scene(world: World) -> BuiltScene:
     shader = _Shader(world, eye)
     scene = _Scene(bg_color=(*((0.02,) * 3 if shader.mode == "thermal" else SKY[light.time]), 1.0),
                    ambient_light=(AMBIENT[light.time],) * 3)
-    seg: dict = {}
+    layers: list[_Layer] = []
+    instances: list[_Instance] = []
     casters = Occluders.empty()
     view = _View.of(rig.intrinsics(), cam2_from_world, rig.width, rig.height)
     if world.static:
-        mesh, casters = _static_mesh(world.static, shader, world, view)
-        if mesh is not None:
-            seg[scene.add(mesh)] = (0, 0, 0)
+        static, casters = _static_mesh(world.static, shader, world, view)
+        if static is not None:
+            instances.append(_Instance(_draw_of(static.node), 0, (len(layers), np.arange(static.triangles()))))
+            layers.append(static)
     if shader.mode == "lit":
-        scene.add(_sky_dome(world, shader.headroom), pose=np.r_[np.c_[np.eye(3), eye], [[0, 0, 0, 1]]])
-    lamps: list[tuple[Part, np.ndarray, tuple]] = []
+        layers.append(_sky_dome(world, shader.headroom, eye))
+    lamps: list[tuple[Part, np.ndarray, int]] = []
     bodies = []
     for actor in world.actors:
         lit = shader.mode == "pbr" and actor.moving  # night: moving vehicles' lamps glow; parked stay off
         bodies.append(([p for p in actor.parts if not (lit and p.material.name in EMISSIVE)],
                        actor.pose, actor.moving))
-        lamps += [(p, actor.pose, _seg_code(actor.id)) for p in actor.parts
-                  if lit and p.material.name in EMISSIVE]
+        lamps += [(p, actor.pose, actor.id) for p in actor.parts if lit and p.material.name in EMISSIVE]
     textured = shader.mode == "lit" and world.appearance.textures
-    meshes, merged, actor_casters, reach = _actor_meshes(
+    actors = _actor_meshes(
         bodies, shader, view,
         factor_rng(world.seed, world.frame_index, "actor_textures") if textured else None,
         _stop_lamp_glow(world.actors, bodies) if shader.mode == "lit" else None)
-    for actor, mesh in zip(world.actors, meshes):
-        if mesh is not None:
-            seg[scene.add(mesh, pose=actor.pose)] = _seg_code(actor.id)
-    if merged is not None:  # not in `seg`, so the instance pass never draws it
-        scene.add_node(merged)
-    for part, pose, code in lamps:
+    for actor, tris, drawn_as in zip(world.actors, actors.own, actors.drawn_as):
+        if tris is not None:
+            own = actors.layers[drawn_as[0]].node if not textured else None  # its layer is its node
+            draw = (_draw_of(own) if own is not None
+                    else instance_pass.Draw(tris, pyrender.Node(matrix=actor.pose).matrix, False))
+            instances.append(_Instance(draw, actor.id, (len(layers) + drawn_as[0], drawn_as[1])))
+    layers += actors.layers
+    for layer in layers:
+        scene.add_node(layer.node)
+    for part, pose, actor_id in lamps:
         mat = pyrender.MetallicRoughnessMaterial(baseColorFactor=(0.0, 0.0, 0.0, 1.0),
                                                  emissiveFactor=EMISSIVE[part.material.name],
                                                  doubleSided=True)
-        seg[scene.add(_lamp_mesh(part, mat), pose=pose)] = code
+        instances.append(_Instance(_draw_of(scene.add(_lamp_mesh(part, mat), pose=pose)), actor_id, None))
     pose, residual = camera_node_pose(cam2_from_world)
     scene.add(_ExactCamera(rig.intrinsics(), residual), pose=pose)
     if shader.mode == "pbr":
@@ -724,8 +878,13 @@ def build_scene(world: World) -> BuiltScene:
                                          innerConeAngle=0.15, outerConeAngle=0.45), pose=p)
     flags = {"pbr": RenderFlags.NONE, "thermal": RenderFlags.FLAT,
              "lit": RenderFlags.FLAT | RenderFlags.RGBA}[shader.mode]
-    return BuiltScene(scene, seg, flags, Casters(casters, actor_casters, reach),
-                      [m for m in meshes if m is not None], None if merged is None else merged.mesh)
+    return BuiltScene(scene, instances, flags, layers, Casters(casters, actors.casters, actors.reach))
+
+
+def _draw_of(node: pyrender.Node) -> instance_pass.Draw:
+    """The instance pass's draw of a colour pass node: all its triangles, in primitive order."""
+    tris = np.concatenate([p.positions for p in node.mesh.primitives]).reshape(-1, 3, 3)
+    return instance_pass.Draw(tris, node.matrix, node.mesh.is_transparent)
 
 
 def _shade_tint(time: str) -> np.ndarray:
@@ -773,9 +932,9 @@ def render(world: World) -> RenderOutput:
     rig = world.rig
     r = renderer(rig.width, rig.height)
     built = build_scene(world)
-    color = built.colour_pass(r)
-    instance, depth = built.instance_pass(r)
+    seen = built.instance_pass(r)
+    color = built.colour_pass(r, seen)
     lit = bool(built.flags & RenderFlags.RGBA)
-    rgb = shade(world, color, depth, instance, built.casters) if lit else color[..., :3]
-    return RenderOutput(np.ascontiguousarray(rgb), depth.astype(np.float32), instance,
+    rgb = shade(world, color, seen.depth, seen.instance, built.casters) if lit else color[..., :3]
+    return RenderOutput(np.ascontiguousarray(rgb), seen.depth.astype(np.float32), seen.instance,
                         HEADROOM if lit else 1.0)

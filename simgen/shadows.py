@@ -47,34 +47,39 @@ AXIS_MARGIN = 0.05
 
 @dataclass
 class Occluders:
-    """World-frame triangles that can cast a shadow, and each one's shadow depth."""
+    """World-frame triangles that can cast a shadow, as shared vertices and faces indexing them
+    (fewer numbers to copy into Embree, embree_scene: shared vertices are about a fifth of the
+    triangles' corners), and each one's shadow depth."""
 
-    tris: np.ndarray  # (F, 3, 3) float32
+    vertices: np.ndarray  # (V, 3) float32
+    faces: np.ndarray  # (F, 3) int32
     depth: np.ndarray  # (F,) float32, 1 - porosity ** 2
-    # The same triangles as shared vertices and faces (vertices[faces] equals tris bit for bit),
-    # where known: fewer numbers to copy into Embree (embree_scene), shared vertices being about
-    # a fifth of the triangles' corners.
-    vertices: np.ndarray | None = None  # (V, 3) float32
-    faces: np.ndarray | None = None  # (F, 3) int32
 
     @staticmethod
     def empty() -> Occluders:
         """No triangle: what casts no shadow."""
-        return Occluders(np.zeros((0, 3, 3), np.float32), np.zeros(0, np.float32))
+        return Occluders(np.zeros((0, 3), np.float32), np.zeros((0, 3), np.int32), np.zeros(0, np.float32))
+
+    @staticmethod
+    def of_triangles(tris: np.ndarray, depth: np.ndarray) -> Occluders:
+        """(F, 3, 3) triangles, each corner a vertex of its own."""
+        corners = tris.reshape(-1, 3)
+        return Occluders(corners, np.arange(len(corners), dtype=np.int32).reshape(-1, 3), depth)
 
     @staticmethod
     def of_mesh(parts: list[Part], vertices: np.ndarray, faces: np.ndarray) -> Occluders:
         """The parts' triangles as world-frame `vertices` (V, 3) and `faces` (F, 3) indexing
-        them, in part order: the triangles are gathered from the vertices, so both agree."""
-        vertices, faces = np.asarray(vertices, np.float32), np.asarray(faces, np.int32)
-        return Occluders(np.take(vertices, faces, axis=0), _depths(parts), vertices, faces)
+        them, in part order."""
+        return Occluders(np.asarray(vertices, np.float32), np.asarray(faces, np.int32), _depths(parts))
+
+    @property
+    def tris(self) -> np.ndarray:
+        """(F, 3, 3) float32 triangles."""
+        return np.take(self.vertices, self.faces, axis=0)
 
     def scene(self) -> EmbreeScene:
         """An Embree scene of the triangles."""
-        if self.faces is not None:
-            return embree_scene(self.vertices, self.faces)
-        corners = self.tris.reshape(-1, 3)  # unshared, as embreex's TriangleMesh makes of (F, 3, 3)
-        return embree_scene(corners, np.arange(len(corners)).reshape(-1, 3))
+        return embree_scene(self.vertices, self.faces)
 
     def along(self, points: np.ndarray, direction: np.ndarray) -> Occluders:
         """The triangles that a ray from one of `points` (N, 3) along the unit `direction` may
@@ -91,22 +96,16 @@ class Occluders:
         # Above each lower bound, below the upper ones across the direction (none along it: the
         # rays run on).
         planes = np.r_[np.c_[axes, -lo], np.c_[-axes[:2], hi[:2]]]
-        if self.faces is not None:
-            keep = ~facets.beyond(self.vertices, self.faces, planes)
-            return Occluders(self.tris[keep], self.depth[keep], self.vertices, self.faces[keep])
-        corners = self.tris.reshape(-1, 3)
-        keep = ~facets.beyond(corners, np.arange(len(corners)).reshape(-1, 3), planes)
-        return Occluders(self.tris[keep], self.depth[keep])
+        keep = ~facets.beyond(self.vertices, self.faces, planes)
+        return Occluders(self.vertices, self.faces[keep], self.depth[keep])
 
     @staticmethod
     def join(a: Occluders, b: Occluders) -> Occluders:
-        if not len(a.tris) or not len(b.tris):
-            return b if not len(a.tris) else a
-        if a.faces is None or b.faces is None:
-            return Occluders(np.concatenate([a.tris, b.tris]), np.concatenate([a.depth, b.depth]))
-        return Occluders(np.concatenate([a.tris, b.tris]), np.concatenate([a.depth, b.depth]),
-                         np.concatenate([a.vertices, b.vertices]),
-                         np.concatenate([a.faces, b.faces + np.int32(len(a.vertices))]))
+        if not len(a.faces) or not len(b.faces):
+            return b if not len(a.faces) else a
+        return Occluders(np.concatenate([a.vertices, b.vertices]),
+                         np.concatenate([a.faces, b.faces + np.int32(len(a.vertices))]),
+                         np.concatenate([a.depth, b.depth]))
 
 
 def _depths(parts: list[Part]) -> np.ndarray:
@@ -190,7 +189,7 @@ def sky_occlusion(occluders: Occluders, reach: Reach, depth: np.ndarray, ground:
     """(H, W) float32 share of the sky (cosine-weighted about world up) that `occluders` hide
     from the surface seen at each `ground` pixel; 0 elsewhere and beyond every actor's reach."""
     H, W = depth.shape
-    if not len(occluders.tris) or not len(reach.lo):
+    if not len(occluders.faces) or not len(reach.lo):
         return np.zeros((H, W), np.float32)
     v, u = np.mgrid[SKY_STEP // 2:H:SKY_STEP, SKY_STEP // 2:W:SKY_STEP]
     need = ground[v, u] & (depth[v, u] > 0)

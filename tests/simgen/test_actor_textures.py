@@ -119,11 +119,11 @@ def test_the_colour_pass_draws_every_actor_face_in_view_once_textured_faces_as_s
             seen.append(int(view.faces(v, np.asarray(p.mesh.faces)).sum()))
     faces = sum(len(p.mesh.faces) for a in world.actors for p in a.parts)
     assert 0 < sum(seen) < faces / 2  # most of the street lies beside and behind the camera
-    prims = built.colour_actors.primitives
+    prims = built.layers[-1].node.mesh.primitives  # static world, sky dome, the actors
     assert [p.material.baseColorTexture is None for p in prims] == [False, False, False, True]
     assert sum(len(p.positions) for p in prims) == 3 * sum(seen)
     assert all(np.max(p.color_0[:, :3]) > 1.0 for p in prims[:3]) and np.max(prims[3].color_0) <= 1.0
-    own = [sum(len(q.positions) for q in m.primitives) // 3 for m in built.actor_meshes]
+    own = [len(i.draw.tris) for i in built.instances if i.actor]
     assert sum(own) == sum(seen) and min(own) > 0
 
 
@@ -149,9 +149,8 @@ def test_the_colour_pass_draws_its_nodes_in_one_order():
     world = sample_world(load_spec("scenes/urban.yaml"), 0, 53)  # a frame where the order showed
     built = build_scene(world)
     scene = built.scene
-    own = {id(m) for m in built.actor_meshes}
     cam = scene.get_pose(scene.main_camera_node)[:3, 3]
-    far = [float(np.linalg.norm(scene.get_pose(n)[:3, 3] - cam)) for n in scene.mesh_nodes if id(n.mesh) not in own]
+    far = [float(np.linalg.norm(scene.get_pose(n)[:3, 3] - cam)) for n in scene.mesh_nodes]
     assert len(far) == 3 and len(set(far)) == 3  # static world, sky dome, the actors
     a, b = render(world), render(world)
     assert np.array_equal(a.color, b.color)
@@ -171,8 +170,9 @@ def test_nodes_at_one_distance_are_drawn_in_the_order_they_were_added():
     assert len(set(far)) < len(far)  # ties are there: the order among them matters
     nodes = list(scene.mesh_nodes)
     assert nodes[0].mesh is not None and len(nodes) == len(scene.mesh_nodes)
-    assert [n for n in nodes if n in built.seg] == list(built.seg)  # seg maps in the order added
-    added = [scene.add(pyrender.Mesh([m.primitives[0]])) for m in built.actor_meshes[:40]]
+    # The instance pass draws the same nodes (no sky dome at night), listed in the order added.
+    assert [i.draw.pose.tolist() for i in built.instances] == [n.matrix.tolist() for n in nodes]
+    added = [scene.add(pyrender.Mesh([n.mesh.primitives[0]])) for n in nodes[1:41]]
     assert list(scene.mesh_nodes)[-len(added):] == added
     assert [type(n.light).__name__ for n in scene.light_nodes] == ["SpotLight", "SpotLight", "DirectionalLight"]
     cam_from_scene = np.linalg.inv(scene.get_pose(scene.main_camera_node))

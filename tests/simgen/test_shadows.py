@@ -142,8 +142,8 @@ def test_along_keeps_what_a_ray_may_meet():
     points = np.array([[0.0, 0.0, 0.0], [1.0, 1.0, 0.0]])
     up = np.array([0.0, 0.0, 1.0])
     faces = np.arange(3 * len(tris), dtype=np.int32).reshape(-1, 3)
-    shared = Occluders(tris, depth, tris.reshape(-1, 3), faces)
-    for occ in (Occluders(tris, depth), shared):
+    shared = Occluders(tris.reshape(-1, 3), faces, depth)
+    for occ in (Occluders.of_triangles(tris, depth), shared):
         kept = occ.along(points, up)
         assert np.array_equal(kept.depth, depth[want])  # the kept triangles, in their order
         assert np.array_equal(kept.tris, tris[want])
@@ -151,7 +151,7 @@ def test_along_keeps_what_a_ray_may_meet():
     slant = np.array([1.0, 0.0, 1.0]) / np.sqrt(2.0)
     on_it = np.array([[[5, -0.1, 5], [5.1, 0.1, 5], [4.9, 0.1, 5]], [[0, -1, -5], [1, 1, -5], [-1, 1, -5]]],
                      np.float32)
-    kept = Occluders(on_it, np.ones(2, np.float32)).along(np.zeros((1, 3)), slant)
+    kept = Occluders.of_triangles(on_it, np.ones(2, np.float32)).along(np.zeros((1, 3)), slant)
     assert np.array_equal(kept.tris, on_it[:1])
 
 

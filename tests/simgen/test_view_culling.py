@@ -56,7 +56,7 @@ def test_culling_leaves_every_pixel_as_it_was(spec, frame, mode, monkeypatch):
     total = sum(len(p.mesh.faces) for p in world.static) + sum(
         len(p.mesh.faces) for a in world.actors for p in a.parts)
     built = R.build_scene(world)
-    drawn = sum(len(p.positions) // 3 for n in built.seg for p in n.mesh.primitives)  # the instance pass
+    drawn = sum(len(i.draw.tris) for i in built.instances)  # the instance pass
     culled = R.render(world)
     monkeypatch.setattr(R._View, "faces", lambda self, vertices, faces: np.ones(len(faces), bool))
     whole = R.render(world)

@@ -1,0 +1,324 @@
+"""The colour pass's hidden triangles: those that no sample of it can see, found from the instance
+pass, so that the colour pass leaves them out and draws the same bytes.
+
+llvmpipe spends the colour pass (4x multisampled, simgen.render) per triangle and per 4x4 block
+it touches, hidden or not, and most triangles in view lie behind others (on urban.yaml four in
+five: trees behind houses, yards behind walls, the far side of every crown). A triangle that wins
+no sample changes no byte, and leaving out triangles that win none changes no winner: at every
+sample the nearest triangle (the first drawn among equally near ones) stays.
+
+The instance pass names the triangle seen at each pixel centre. From the geometry of those
+triangles, as the colour pass draws them, every pixel gets a bound of how deep its four samples'
+surfaces lie at most (`certify`): a sample counts as covered by a triangle only where it lies
+inside all three of its edges by COVER_PX, or, within COVER_PX of an edge that two triangles share
+(the same vertices: llvmpipe covers such a sample by exactly one of them), inside the other
+edges of both. The triangle containing a sample need not be the one seen at a centre: it is
+found by walking across shared edges from the triangles seen at the pixel and its eight
+neighbours. A triangle is hidden (`hidden`) where every pixel whose samples it may reach has such
+a bound, nearer than its own nearest corner by margins that hold llvmpipe's float32 transform,
+its fixed-point coverage and its 24-bit depth; triangles it may clip (near plane, guard band) and
+slivers are kept.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+# The colour pass's four samples in a pixel (glGetMultisamplefv on llvmpipe's 4x buffers), in image
+# coordinates: x to the right and y down from the pixel's top left corner (GL counts y up).
+SAMPLES = np.array([[0.375, 0.875], [0.875, 0.625], [0.125, 0.375], [0.625, 0.125]])
+# A sample this far (px) inside a triangle's edge is on that side whatever llvmpipe's 1/256 px
+# vertex snapping and float32 transform do to the edge.
+COVER_PX = 0.01
+# A triangle may cover a sample of a pixel only where the pixel's centre lies within this distance
+# (px) of its three edge lines: the samples lie within 0.4 px of the centre.
+REACH_PX = 0.75
+# Window depth: llvmpipe's float32 vertex transform and depth interpolation and its 24-bit depth
+# (6e-8 a step) stay well within it; a triangle's depth gradient adds its slope over SLOPE_PX, over
+# half a pixel (a depth taken at the pixel centre) and a hundredth of its depth range
+# (interpolation of a long, narrow triangle).
+DEPTH_EPS = 4e-6
+SLOPE_PX = 0.01
+SPAN_SHARE = 0.01
+# Triangles whose corners lie farther than this (px) from the image, or whose height is below this
+# share of their longest edge, take no part: llvmpipe may clip the former, and both have edges and
+# depth planes that its float32 set-up computes less well.
+GUARD_PX = 4096.0
+MIN_ASPECT = 1e-4
+WALK = 6  # steps across shared edges from a triangle seen at a pixel centre towards a sample
+_PENDING = 1 << 16  # samples on shared edges a frame resolves at most (the rest count as uncovered)
+# A pixel and its eight neighbours, row and column offsets.
+_DR = np.array([0, -1, 1, 0, 0, -1, -1, 1, 1])
+_DC = np.array([0, 0, 0, -1, 1, -1, 1, -1, 1])
+
+
+def screen(corners: np.ndarray, clip_from_frame: np.ndarray, width: int, height: int
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Window x, y (image rows, down) and depth of (n, 3, 3) float32 corners in one frame, and
+    whether each corner lies in front of the camera, as (n, 3) arrays."""
+    v = corners.reshape(-1, 3).astype(np.float64)
+    clip = v @ clip_from_frame[:3, :3].T + clip_from_frame[:3, 3]
+    w = v @ clip_from_frame[3, :3] + clip_from_frame[3, 3]
+    front = w > 0
+    inv = 1.0 / np.where(front, w, 1.0)
+    x = (clip[:, 0] * inv + 1.0) * (width / 2)
+    y = height - (clip[:, 1] * inv + 1.0) * (height / 2)
+    z = (clip[:, 2] * inv + 1.0) / 2
+    return (x.reshape(-1, 3), y.reshape(-1, 3), z.reshape(-1, 3), front.reshape(-1, 3))
+
+
+def adjacency(keys: np.ndarray) -> np.ndarray:
+    """(n, 3) int64: the triangle across each edge (corner k to corner k + 1) of triangles whose
+    corners are the shared vertices `keys` (n, 3), where exactly two triangles share that edge;
+    -1 elsewhere."""
+    n = len(keys)
+    a, b = keys, np.roll(keys, -1, axis=1)
+    span = int(keys.max()) + 1 if n else 1
+    edge = (np.minimum(a, b) * span + np.maximum(a, b)).ravel()
+    order = np.argsort(edge, kind="stable")
+    e = edge[order]
+    same = e[1:] == e[:-1]  # a pair begins at i where e[i] == e[i + 1]
+    pair = same.copy()
+    pair[1:] &= ~same[:-1]  # not the second or later of a run
+    pair[:-1] &= ~same[1:]  # nor the start of a run of three or more
+    i = np.flatnonzero(pair)
+    out = np.full(3 * n, -1, np.int64)
+    out[order[i]] = order[i + 1] // 3
+    out[order[i + 1]] = order[i] // 3
+    return out.reshape(n, 3)
+
+
+@numba.njit(cache=True, nogil=True)
+def _setup(x, y, z, front, width, height, edges, plane, slack, low, centre, ok):
+    """Per triangle: normalised edge functions (inside >= 0, in px), depth plane, the depth slack
+    of a covering triangle, the lowest depth it may draw, its centroid, and whether it takes part."""
+    for i in range(x.shape[0]):
+        ok[i] = False
+        good = True
+        for k in range(3):
+            if (not front[i, k] or not 1e-5 < z[i, k] < 1.0 - 1e-5
+                    or abs(x[i, k] - width / 2) > GUARD_PX or abs(y[i, k] - height / 2) > GUARD_PX):
+                good = False
+        if not good:
+            continue
+        x0, y0, x1, y1, x2, y2 = x[i, 0], y[i, 0], x[i, 1], y[i, 1], x[i, 2], y[i, 2]
+        area = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
+        longest = 0.0
+        for k in range(3):
+            dx, dy = x[i, (k + 1) % 3] - x[i, k], y[i, (k + 1) % 3] - y[i, k]
+            longest = max(longest, math.sqrt(dx * dx + dy * dy))
+        if abs(area) < max(1e-6, MIN_ASPECT * longest * longest):
+            continue
+        sign = 1.0 if area > 0 else -1.0
+        for k in range(3):
+            ax, ay, bx, by = x[i, k], y[i, k], x[i, (k + 1) % 3], y[i, (k + 1) % 3]
+            a, b = (ay - by) * sign, (bx - ax) * sign
+            n = math.sqrt(a * a + b * b)
+            edges[i, k, 0], edges[i, k, 1], edges[i, k, 2] = a / n, b / n, -(a * ax + b * ay) / n
+        z0, z1, z2 = z[i, 0], z[i, 1], z[i, 2]
+        p = ((z1 - z0) * (y2 - y0) - (z2 - z0) * (y1 - y0)) / area
+        q = ((x1 - x0) * (z2 - z0) - (x2 - x0) * (z1 - z0)) / area
+        plane[i, 0], plane[i, 1], plane[i, 2] = p, q, z0 - p * x0 - q * y0
+        zmin, zmax = min(z0, min(z1, z2)), max(z0, max(z1, z2))
+        base = DEPTH_EPS + SPAN_SHARE * (zmax - zmin)
+        slope = abs(p) + abs(q)
+        slack[i] = base + (SLOPE_PX + 0.5) * slope
+        low[i] = zmin - base - (SLOPE_PX + REACH_PX) * slope
+        centre[i, 0], centre[i, 1] = (x0 + x1 + x2) / 3, (y0 + y1 + y2) / 3
+        ok[i] = True
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _walk(edges, plane, slack, adj, ok, t, x, y, steps):
+    """Depth bound of what covers (x, y), from triangle t across shared edges towards the point
+    (at most `steps` of them); inf where no cover is certain; -2 - (3 u + k) where the point lies
+    within COVER_PX of edge k of triangle u and inside its other two edges (`_across` decides).
+    The hot loop stays free of the rare case's array reads: llvm compiles it several times faster."""
+    for _ in range(steps + 1):
+        e0 = edges[t, 0, 0] * x + edges[t, 0, 1] * y + edges[t, 0, 2]
+        e1 = edges[t, 1, 0] * x + edges[t, 1, 1] * y + edges[t, 1, 2]
+        e2 = edges[t, 2, 0] * x + edges[t, 2, 1] * y + edges[t, 2, 2]
+        k, least = 0, e0
+        if e1 < least:
+            k, least = 1, e1
+        if e2 < least:
+            k, least = 2, e2
+        if least >= COVER_PX:
+            return plane[t, 0] * x + plane[t, 1] * y + plane[t, 2] + slack[t]
+        if least > -COVER_PX:
+            if (k == 0 or e0 >= COVER_PX) and (k == 1 or e1 >= COVER_PX) and (k == 2 or e2 >= COVER_PX):
+                return -2.0 - (3 * t + k)
+            return np.inf
+        if steps == 0:
+            return np.inf
+        t = adj[t, k]
+        if t < 0 or not ok[t]:
+            return np.inf
+    return np.inf
+
+
+@numba.njit(cache=True, nogil=True)
+def _certify(seen, edges, plane, slack, adj, ok, samples, out, pending):
+    """out[r, c]: the deepest bound over the pixel's samples of what covers each, inf where one
+    has none (or no triangle of the layers is seen at the pixel centre). Each sample's cover is
+    searched among the triangles seen at the pixel and its neighbours (each once), then by
+    walking from them across shared edges towards the sample. Samples on a shared edge are left
+    to `_across`: rows of `pending` (pixel, sample, 3 u + k); returns how many."""
+    H, W = seen.shape
+    starts = np.empty(9, np.int64)
+    m = 0
+    for r in range(H):
+        for c in range(W):
+            out[r, c] = np.inf
+            own = seen[r, c]
+            if own < 0 or not ok[own]:
+                continue
+            worst, n, waiting = -np.inf, 0, 0
+            for s in range(samples.shape[0]):
+                x, y = c + samples[s, 0], r + samples[s, 1]
+                best = _walk(edges, plane, slack, adj, ok, own, x, y, 0)
+                mark = best if best < -1.0 else 0.0  # on a shared edge: the first such answer
+                if best == np.inf or mark < 0.0:
+                    best = np.inf
+                    if n == 0:  # the pixel's neighbours, gathered once
+                        for j in range(9):
+                            rr, cc = r + _DR[j], c + _DC[j]
+                            if 0 <= rr < H and 0 <= cc < W and seen[rr, cc] >= 0 and ok[seen[rr, cc]]:
+                                known = False
+                                for q in range(n):
+                                    known |= starts[q] == seen[rr, cc]
+                                if not known:
+                                    starts[n] = seen[rr, cc]
+                                    n += 1
+                    for steps in (0, WALK):
+                        for j in range(n):
+                            if best < np.inf or (j == 0 and steps == 0):  # own, directly: done above
+                                continue
+                            best = _walk(edges, plane, slack, adj, ok, starts[j], x, y, steps)
+                            if best < -1.0:
+                                mark = best if mark == 0.0 else mark
+                                best = np.inf
+                if best == np.inf and mark < 0.0 and m + waiting < pending.shape[0]:
+                    pending[m + waiting, 0], pending[m + waiting, 1] = r * W + c, s
+                    pending[m + waiting, 2] = int(-2.0 - mark)
+                    waiting += 1
+                elif best == np.inf:
+                    worst = np.inf
+                    break
+                else:
+                    worst = max(worst, best)
+            if worst < np.inf:
+                out[r, c] = worst
+                m += waiting
+    return m
+
+
+@numba.njit(cache=True, nogil=True)
+def _across(edges, plane, slack, centre, adj, ok, samples, pending, out):
+    """The samples `pending` left on shared edges: a sample within COVER_PX of edge k of triangle
+    t and inside its other two edges is covered by t or by the triangle across that edge, where
+    that one lies on the edge's other side and has the sample inside its own other two edges
+    (llvmpipe covers a point of an edge two triangles share by exactly one of them); the deeper
+    of the two bounds counts, or inf."""
+    W = out.shape[1]
+    for i in range(pending.shape[0]):
+        p, s, tk = pending[i, 0], pending[i, 1], pending[i, 2]
+        r, c, t, k = p // W, p % W, tk // 3, tk % 3
+        x, y = c + samples[s, 0], r + samples[s, 1]
+        u = adj[t, k]
+        depth = np.inf
+        if u >= 0 and ok[u] and edges[t, k, 0] * centre[u, 0] + edges[t, k, 1] * centre[u, 1] + edges[t, k, 2] < -COVER_PX:
+            f0 = edges[u, 0, 0] * x + edges[u, 0, 1] * y + edges[u, 0, 2]
+            f1 = edges[u, 1, 0] * x + edges[u, 1, 1] * y + edges[u, 1, 2]
+            f2 = edges[u, 2, 0] * x + edges[u, 2, 1] * y + edges[u, 2, 2]
+            j, near = 0, abs(f0)  # u's edge along the shared one
+            if abs(f1) < near:
+                j, near = 1, abs(f1)
+            if abs(f2) < near:
+                j = 2
+            if (adj[u, j] == t and (j == 0 or f0 >= COVER_PX) and (j == 1 or f1 >= COVER_PX)
+                    and (j == 2 or f2 >= COVER_PX)):
+                depth = max(plane[t, 0] * x + plane[t, 1] * y + plane[t, 2] + slack[t],
+                            plane[u, 0] * x + plane[u, 1] * y + plane[u, 2] + slack[u])
+        out[r, c] = max(out[r, c], depth)
+
+
+@numba.njit(cache=True, nogil=True)
+def _row_max(z, table):
+    """table[L, r, c]: the largest of z[r, c:c + 2 ** L] (as far as the row goes)."""
+    H, W = z.shape
+    table[0] = z
+    for L in range(1, table.shape[0]):
+        h = 1 << (L - 1)
+        for r in range(H):
+            for c in range(W):
+                m = table[L - 1, r, c]
+                if c + h < W:
+                    m = max(m, table[L - 1, r, c + h])
+                table[L, r, c] = m
+
+
+@numba.njit(cache=True, nogil=True)
+def _hidden(table, edges, low, ok, y, out):
+    levels, H, W = table.shape
+    for i in range(edges.shape[0]):
+        out[i] = False
+        if not ok[i]:
+            continue
+        top = max(0, int(math.floor(min(y[i, 0], min(y[i, 1], y[i, 2])) - REACH_PX - 0.5)))
+        bottom = min(H - 1, int(math.ceil(max(y[i, 0], max(y[i, 1], y[i, 2])) + REACH_PX)))
+        hidden = True
+        for r in range(top, bottom + 1):
+            yc = r + 0.5
+            lo, hi = -np.inf, np.inf
+            for k in range(3):
+                a, rest = edges[i, k, 0], edges[i, k, 1] * yc + edges[i, k, 2] + REACH_PX
+                if a > 0:
+                    lo = max(lo, -rest / a)
+                elif a < 0:
+                    hi = min(hi, -rest / a)
+                elif rest < 0:
+                    hi = -np.inf
+            if not lo <= hi:
+                continue
+            c0, c1 = max(0.0, math.ceil(lo - 0.5)), min(W - 1.0, math.floor(hi - 0.5))
+            if c0 > c1:
+                continue
+            a, b = int(c0), int(c1)
+            L = 0
+            while (2 << L) <= b - a + 1:
+                L += 1
+            if not max(table[L, r, a], table[L, r, b - (1 << L) + 1]) < low[i]:
+                hidden = False
+                break
+        out[i] = hidden
+
+
+_TABLES: dict[tuple[int, int, int], np.ndarray] = {}
+
+
+def hidden(x: np.ndarray, y: np.ndarray, z: np.ndarray, front: np.ndarray, keys: np.ndarray,
+           seen: np.ndarray) -> np.ndarray:
+    """(n,) bool: which of the colour pass's triangles win no sample. x, y, z, front: their
+    corners on screen (`screen`); keys (n, 3): their shared vertices (equal keys, equal bits);
+    seen (H, W) int64: the triangle seen at each pixel centre, -1 where none of them."""
+    H, W = seen.shape
+    n = len(x)
+    edges, plane, centre = np.zeros((n, 3, 3)), np.zeros((n, 3)), np.zeros((n, 2))
+    slack, low, ok = np.zeros(n), np.zeros(n), np.zeros(n, bool)
+    _setup(x, y, z, front, W, H, edges, plane, slack, low, centre, ok)
+    bound, pending = np.empty((H, W)), np.empty((_PENDING, 3), np.int64)
+    adj = adjacency(keys)
+    m = _certify(seen, edges, plane, slack, adj, ok, SAMPLES, bound, pending)
+    _across(edges, plane, slack, centre, adj, ok, SAMPLES, pending[:m], bound)
+    levels = max(1, int(W).bit_length())
+    table = _TABLES.get((levels, H, W))
+    if table is None:
+        table = _TABLES.setdefault((levels, H, W), np.empty((levels, H, W)))
+    _row_max(bound, table)
+    out = np.empty(n, bool)
+    _hidden(table, edges, low, ok, y, out)
+    return out
