@@ -80,6 +80,14 @@ def _complete(dst: Path, fid: str) -> bool:
             and info_path(dst, fid).exists())
 
 
+def _as_seen(world, weather: WeatherOverride | None):
+    """The world as the LiDAR sees it: the override's weather instead of the world's own (the
+    images keep theirs); the world itself is left as it is, for the next sensor."""
+    if weather is None or not weather.record():
+        return world
+    return replace(world, weather=replace(world.weather, **weather.record()))
+
+
 def rescan_frame(job: RescanJob) -> str:
     """Rebuild one frame's world from its meta and scan it with every output's sensor not yet
     done there. The world and its Embree target are built once for all of them (a LiDAR-only
@@ -95,12 +103,9 @@ def rescan_frame(job: RescanJob) -> str:
     targets = TargetCache(world)
     seed = lidar_seed(int(meta["seed"]), int(meta["frame_index"]))
     for out in todo:
-        lidar, weather = out.request.lidar, out.request.weather
+        lidar = out.request.lidar
         spec = preset(lidar.preset, beams=lidar.beams, max_range=lidar.max_range)
-        seen = world  # the sensor sees other weather, not the images
-        if weather is not None and weather.record():
-            seen = replace(world, weather=replace(world.weather, **weather.record()))
-        s = scan(seen, spec, seed, target=targets.get(spec))
+        s = scan(_as_seen(world, out.request.weather), spec, seed, target=targets.get(spec))
         write_scan(out.dst, job.fid, s)
         atomic_write_text(out.dst / "meta" / f"{job.fid}.json",
                           dump_json(meta_with_lidar(meta, s.point_counts(), out.request.record())))
