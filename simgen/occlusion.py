@@ -34,7 +34,7 @@ SAMPLES = np.array([[0.375, 0.875], [0.875, 0.625], [0.125, 0.375], [0.625, 0.12
 # vertex snapping and float32 transform do to the edge.
 COVER_PX = 0.01
 # A triangle may cover a sample of a pixel only where the pixel's centre lies within this distance
-# (px) of its three edge lines: the samples lie within 0.4 px of the centre.
+# (px) of its box and of its three edge lines: the samples lie within 0.4 px of the centre.
 REACH_PX = 0.75
 # Window depth: llvmpipe's float32 vertex transform and depth interpolation and its 24-bit depth
 # (6e-8 a step) stay well within it; a triangle's depth gradient adds its slope over SLOPE_PX, over
@@ -49,6 +49,7 @@ SPAN_SHARE = 0.01
 GUARD_PX = 4096.0
 MIN_ASPECT = 1e-4
 WALK = 6  # steps across shared edges from a triangle seen at a pixel centre towards a sample
+TILE = 8  # px: a triangle whose box lies over tiles all bounded nearer than it is hidden at once
 _PENDING = 1 << 16  # samples on shared edges a frame resolves at most (the rest count as uncovered)
 # A pixel and its eight neighbours, row and column offsets.
 _DR = np.array([0, -1, 1, 0, 0, -1, -1, 1, 1])
@@ -74,21 +75,40 @@ def adjacency(keys: np.ndarray) -> np.ndarray:
     """(n, 3) int64: the triangle across each edge (corner k to corner k + 1) of triangles whose
     corners are the shared vertices `keys` (n, 3), where exactly two triangles share that edge;
     -1 elsewhere."""
-    n = len(keys)
-    a, b = keys, np.roll(keys, -1, axis=1)
-    span = int(keys.max()) + 1 if n else 1
-    edge = (np.minimum(a, b) * span + np.maximum(a, b)).ravel()
-    order = np.argsort(edge, kind="stable")
-    e = edge[order]
-    same = e[1:] == e[:-1]  # a pair begins at i where e[i] == e[i + 1]
-    pair = same.copy()
-    pair[1:] &= ~same[:-1]  # not the second or later of a run
-    pair[:-1] &= ~same[1:]  # nor the start of a run of three or more
-    i = np.flatnonzero(pair)
-    out = np.full(3 * n, -1, np.int64)
-    out[order[i]] = order[i + 1] // 3
-    out[order[i + 1]] = order[i] // 3
-    return out.reshape(n, 3)
+    out = np.full((len(keys), 3), -1, np.int64)
+    if len(keys):
+        _pair_edges(np.ascontiguousarray(keys, np.int64), out)
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _pair_edges(keys, out):
+    """`adjacency` from each vertex's triangles (a counting sort of the corners by vertex): the
+    triangles on edge (a, b) are those of a's that have b too."""
+    n, nv = keys.shape[0], keys.max() + 1
+    start = np.zeros(nv + 1, np.int64)
+    for t in range(n):
+        for k in range(3):
+            start[keys[t, k] + 1] += 1
+    for v in range(nv):
+        start[v + 1] += start[v]
+    fill, around = start[:-1].copy(), np.empty(3 * n, np.int64)
+    for t in range(n):
+        for k in range(3):
+            v = keys[t, k]
+            around[fill[v]] = t
+            fill[v] += 1
+    for t in range(n):
+        for k in range(3):
+            a, b = keys[t, k], keys[t, (k + 1) % 3]
+            other, found = -1, 0
+            for i in range(start[a], start[a + 1]):
+                u = around[i]
+                if u != t and (keys[u, 0] == b or keys[u, 1] == b or keys[u, 2] == b):
+                    other = u
+                    found += 1
+            if found == 1:
+                out[t, k] = other
 
 
 @numba.njit(cache=True, nogil=True)
@@ -247,33 +267,64 @@ def _across(edges, plane, slack, centre, adj, ok, samples, pending, out):
 
 
 @numba.njit(cache=True, nogil=True)
-def _row_max(z, table):
-    """table[L, r, c]: the largest of z[r, c:c + 2 ** L] (as far as the row goes)."""
+def _row_max(z, table, tiles):
+    """table[L, r, c]: the largest of z[r, c:c + 2 ** L] (as far as the row goes), and
+    tiles[i, j]: the largest over the TILE x TILE pixels from (i TILE, j TILE), in float32 rounded
+    up (never below the bound)."""
     H, W = z.shape
-    table[0] = z
+    tiles[:] = -np.inf
+    for r in range(H):
+        for c in range(W):
+            v = np.float32(z[r, c])
+            if v < z[r, c]:
+                v = np.nextafter(v, np.float32(np.inf))
+            table[0, r, c] = v
+            tiles[r // TILE, c // TILE] = max(tiles[r // TILE, c // TILE], v)
     for L in range(1, table.shape[0]):
         h = 1 << (L - 1)
         for r in range(H):
-            for c in range(W):
-                m = table[L - 1, r, c]
-                if c + h < W:
-                    m = max(m, table[L - 1, r, c + h])
-                table[L, r, c] = m
+            for c in range(W - h):
+                table[L, r, c] = max(table[L - 1, r, c], table[L - 1, r, c + h])
+            for c in range(max(0, W - h), W):
+                table[L, r, c] = table[L - 1, r, c]
 
 
 @numba.njit(cache=True, nogil=True)
-def _hidden(table, edges, low, ok, y, out):
+def _within(tiles, x, y, i, low):
+    """Whether every tile under triangle i's box, REACH_PX wider, has its bound below `low`."""
+    th, tw = tiles.shape
+    x0 = max(0, int(math.floor(min(x[i, 0], min(x[i, 1], x[i, 2])) - REACH_PX - 0.5)) // TILE)
+    x1 = min(tw - 1, int(math.ceil(max(x[i, 0], max(x[i, 1], x[i, 2])) + REACH_PX)) // TILE)
+    y0 = max(0, int(math.floor(min(y[i, 0], min(y[i, 1], y[i, 2])) - REACH_PX - 0.5)) // TILE)
+    y1 = min(th - 1, int(math.ceil(max(y[i, 0], max(y[i, 1], y[i, 2])) + REACH_PX)) // TILE)
+    for ty in range(y0, y1 + 1):
+        for tx in range(x0, x1 + 1):
+            if not tiles[ty, tx] < low:
+                return False
+    return True
+
+
+@numba.njit(cache=True, nogil=True)
+def _hidden(table, tiles, edges, low, ok, x, y, out):
+    """out[i]: every pixel whose centre lies within REACH_PX of triangle i's box and of its three
+    edge lines (where its samples may lie) has a bound below its lowest depth (first tried on
+    the tiles under the box)."""
     levels, H, W = table.shape
     for i in range(edges.shape[0]):
         out[i] = False
         if not ok[i]:
             continue
+        if _within(tiles, x, y, i, low[i]):
+            out[i] = True
+            continue
         top = max(0, int(math.floor(min(y[i, 0], min(y[i, 1], y[i, 2])) - REACH_PX - 0.5)))
         bottom = min(H - 1, int(math.ceil(max(y[i, 0], max(y[i, 1], y[i, 2])) + REACH_PX)))
+        left = max(0.0, min(x[i, 0], min(x[i, 1], x[i, 2])) - REACH_PX)
+        right = min(float(W), max(x[i, 0], max(x[i, 1], x[i, 2])) + REACH_PX)
         hidden = True
         for r in range(top, bottom + 1):
             yc = r + 0.5
-            lo, hi = -np.inf, np.inf
+            lo, hi = left, right
             for k in range(3):
                 a, rest = edges[i, k, 0], edges[i, k, 1] * yc + edges[i, k, 2] + REACH_PX
                 if a > 0:
@@ -281,13 +332,12 @@ def _hidden(table, edges, low, ok, y, out):
                 elif a < 0:
                     hi = min(hi, -rest / a)
                 elif rest < 0:
-                    hi = -np.inf
+                    hi = -1.0
             if not lo <= hi:
                 continue
-            c0, c1 = max(0.0, math.ceil(lo - 0.5)), min(W - 1.0, math.floor(hi - 0.5))
-            if c0 > c1:
+            a, b = max(0, int(math.ceil(lo - 0.5))), min(W - 1, int(math.floor(hi - 0.5)))
+            if a > b:
                 continue
-            a, b = int(c0), int(c1)
             L = 0
             while (2 << L) <= b - a + 1:
                 L += 1
@@ -297,7 +347,7 @@ def _hidden(table, edges, low, ok, y, out):
         out[i] = hidden
 
 
-_TABLES: dict[tuple[int, int, int], np.ndarray] = {}
+_TABLES: dict[tuple[int, int, int], tuple[np.ndarray, np.ndarray]] = {}
 
 
 def hidden(x: np.ndarray, y: np.ndarray, z: np.ndarray, front: np.ndarray, keys: np.ndarray,
@@ -315,10 +365,11 @@ def hidden(x: np.ndarray, y: np.ndarray, z: np.ndarray, front: np.ndarray, keys:
     m = _certify(seen, edges, plane, slack, adj, ok, SAMPLES, bound, pending)
     _across(edges, plane, slack, centre, adj, ok, SAMPLES, pending[:m], bound)
     levels = max(1, int(W).bit_length())
-    table = _TABLES.get((levels, H, W))
-    if table is None:
-        table = _TABLES.setdefault((levels, H, W), np.empty((levels, H, W)))
-    _row_max(bound, table)
+    if (levels, H, W) not in _TABLES:  # made once: 20 MB a frame to fill anew
+        _TABLES[levels, H, W] = (np.empty((levels, H, W), np.float32),
+                                 np.empty((-(-H // TILE), -(-W // TILE)), np.float32))
+    table, tiles = _TABLES[levels, H, W]
+    _row_max(bound, table, tiles)
     out = np.empty(n, bool)
-    _hidden(table, edges, low, ok, y, out)
+    _hidden(table, tiles, edges, low, ok, x, y, out)
     return out
