@@ -88,8 +88,8 @@ def test_a_triangle_off_the_image_is_hidden_one_across_the_near_plane_is_kept():
 
 def test_the_depth_blits_round_trip_by_hand():
     """A 24-bit depth through float32 and back (times 1 / (2^24 - 1), then 2^24 - 1, rounded):
-    the half below 2^23 and above 3 2^22 moves up one step where float32 rounds it so, the
-    largest depth stays; read, it is divided by 2^24 - 1."""
+    some move up one step (8388607, 16777214: float32 rounds the product above them), others and
+    the largest depth stay; read, each is divided by 2^24 - 1."""
     z24 = np.array([0, 2, 8388607, 8388608, 16777214, 16777215], np.uint32)
     got = instance_pass._blit_depth(z24)
     moved = np.array([0, 2, 8388608, 8388608, 16777215, 16777215])
