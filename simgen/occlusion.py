@@ -112,9 +112,10 @@ def _pair_edges(keys, out):
 
 
 @numba.njit(cache=True, nogil=True)
-def _setup(x, y, z, front, width, height, edges, plane, slack, low, centre, ok):
+def _setup(x, y, z, front, width, height, edges, plane, slack, low, local, centre, ok):
     """Per triangle: normalised edge functions (inside >= 0, in px), depth plane, the depth slack
-    of a covering triangle, the lowest depth it may draw, its centroid, and whether it takes part."""
+    of a covering triangle, the lowest depth it may draw anywhere and how far below its plane at
+    a pixel centre it may draw in that pixel, its centroid, and whether it takes part."""
     for i in range(x.shape[0]):
         ok[i] = False
         good = True
@@ -147,6 +148,7 @@ def _setup(x, y, z, front, width, height, edges, plane, slack, low, centre, ok):
         slope = abs(p) + abs(q)
         slack[i] = base + (SLOPE_PX + 0.5) * slope
         low[i] = zmin - base - (SLOPE_PX + REACH_PX) * slope
+        local[i] = base + (SLOPE_PX + 0.5) * slope
         centre[i, 0], centre[i, 1] = (x0 + x1 + x2) / 3, (y0 + y1 + y2) / 3
         ok[i] = True
 
@@ -182,8 +184,8 @@ def _walk(edges, plane, slack, adj, ok, t, x, y, steps):
 
 @numba.njit(cache=True, nogil=True)
 def _certify(seen, edges, plane, slack, adj, ok, samples, out, pending):
-    """out[r, c]: the deepest bound over the pixel's samples of what covers each, inf where one
-    has none (or no triangle of the layers is seen at the pixel centre). Each sample's cover is
+    """out[r, c, s]: a bound of the depth of what covers sample s of the pixel, inf where no cover
+    is certain (or no triangle of the layers is seen at the pixel centre). Each sample's cover is
     searched among the triangles seen at the pixel and its neighbours (each once), then by
     walking from them across shared edges towards the sample. Samples on a shared edge are left
     to `_across`: rows of `pending` (pixel, sample, 3 u + k); returns how many."""
@@ -192,11 +194,11 @@ def _certify(seen, edges, plane, slack, adj, ok, samples, out, pending):
     m = 0
     for r in range(H):
         for c in range(W):
-            out[r, c] = np.inf
+            out[r, c, :] = np.inf
             own = seen[r, c]
             if own < 0 or not ok[own]:
                 continue
-            worst, n, waiting = -np.inf, 0, 0
+            n = 0
             for s in range(samples.shape[0]):
                 x, y = c + samples[s, 0], r + samples[s, 1]
                 best = _walk(edges, plane, slack, adj, ok, own, x, y, 0)
@@ -221,18 +223,10 @@ def _certify(seen, edges, plane, slack, adj, ok, samples, out, pending):
                             if best < -1.0:
                                 mark = best if mark == 0.0 else mark
                                 best = np.inf
-                if best == np.inf and mark < 0.0 and m + waiting < pending.shape[0]:
-                    pending[m + waiting, 0], pending[m + waiting, 1] = r * W + c, s
-                    pending[m + waiting, 2] = int(-2.0 - mark)
-                    waiting += 1
-                elif best == np.inf:
-                    worst = np.inf
-                    break
-                else:
-                    worst = max(worst, best)
-            if worst < np.inf:
-                out[r, c] = worst
-                m += waiting
+                if best == np.inf and mark < 0.0 and m < pending.shape[0]:
+                    pending[m, 0], pending[m, 1], pending[m, 2] = r * W + c, s, int(-2.0 - mark)
+                    m += 1
+                out[r, c, s] = best
     return m
 
 
@@ -242,7 +236,7 @@ def _across(edges, plane, slack, centre, adj, ok, samples, pending, out):
     t and inside its other two edges is covered by t or by the triangle across that edge, where
     that one lies on the edge's other side and has the sample inside its own other two edges
     (llvmpipe covers a point of an edge two triangles share by exactly one of them); the deeper
-    of the two bounds counts, or inf."""
+    of the two bounds is the sample's, or inf."""
     W = out.shape[1]
     for i in range(pending.shape[0]):
         p, s, tk = pending[i, 0], pending[i, 1], pending[i, 2]
@@ -263,20 +257,23 @@ def _across(edges, plane, slack, centre, adj, ok, samples, pending, out):
                     and (j == 2 or f2 >= COVER_PX)):
                 depth = max(plane[t, 0] * x + plane[t, 1] * y + plane[t, 2] + slack[t],
                             plane[u, 0] * x + plane[u, 1] * y + plane[u, 2] + slack[u])
-        out[r, c] = max(out[r, c], depth)
+        out[r, c, s] = depth
 
 
 @numba.njit(cache=True, nogil=True)
-def _row_max(z, table, tiles):
-    """table[L, r, c]: the largest of z[r, c:c + 2 ** L] (as far as the row goes), and
-    tiles[i, j]: the largest over the TILE x TILE pixels from (i TILE, j TILE), in float32 rounded
-    up (never below the bound)."""
-    H, W = z.shape
+def _row_max(bound, table, tiles):
+    """table[L, r, c]: the largest bound of the samples of pixels r, c to c + 2 ** L - 1 (as far
+    as the row goes), and tiles[i, j]: the largest over the TILE x TILE pixels from (i TILE,
+    j TILE), in float32 rounded up (never below the bounds)."""
+    H, W = bound.shape[:2]
     tiles[:] = -np.inf
     for r in range(H):
         for c in range(W):
-            v = np.float32(z[r, c])
-            if v < z[r, c]:
+            z = bound[r, c, 0]
+            for s in range(1, bound.shape[2]):
+                z = max(z, bound[r, c, s])
+            v = np.float32(z)
+            if v < z:
                 v = np.nextafter(v, np.float32(np.inf))
             table[0, r, c] = v
             tiles[r // TILE, c // TILE] = max(tiles[r // TILE, c // TILE], v)
@@ -305,46 +302,78 @@ def _within(tiles, x, y, i, low):
 
 
 @numba.njit(cache=True, nogil=True)
-def _hidden(table, tiles, edges, low, ok, x, y, out):
-    """out[i]: every pixel whose centre lies within REACH_PX of triangle i's box and of its three
-    edge lines (where its samples may lie) has a bound below its lowest depth (first tried on
-    the tiles under the box)."""
+def _rows_clear(table, edges, low, x, y, i):
+    """Whether every pixel where triangle i may draw (its box and edge lines, REACH_PX wider) has
+    all its samples bounded below the lowest depth the triangle may draw anywhere."""
     levels, H, W = table.shape
+    top = max(0, int(math.floor(min(y[i, 0], min(y[i, 1], y[i, 2])) - REACH_PX - 0.5)))
+    bottom = min(H - 1, int(math.ceil(max(y[i, 0], max(y[i, 1], y[i, 2])) + REACH_PX)))
+    left = max(0.0, min(x[i, 0], min(x[i, 1], x[i, 2])) - REACH_PX)
+    right = min(float(W), max(x[i, 0], max(x[i, 1], x[i, 2])) + REACH_PX)
+    for r in range(top, bottom + 1):
+        a, b = _span(edges, i, r, left, right, W)
+        if a > b:
+            continue
+        L = 0
+        while (2 << L) <= b - a + 1:
+            L += 1
+        if not max(table[L, r, a], table[L, r, b - (1 << L) + 1]) < low[i]:
+            return False
+    return True
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _span(edges, i, r, left, right, W):
+    """The pixels of row r whose centres lie within REACH_PX of triangle i's edge lines and
+    between `left` and `right`: first and last column (first > last where none)."""
+    yc = r + 0.5
+    lo, hi = left, right
+    for k in range(3):
+        a, rest = edges[i, k, 0], edges[i, k, 1] * yc + edges[i, k, 2] + REACH_PX
+        if a > 0:
+            lo = max(lo, -rest / a)
+        elif a < 0:
+            hi = min(hi, -rest / a)
+        elif rest < 0:
+            hi = -1.0
+    if not lo <= hi:
+        return 1, 0
+    return max(0, int(math.ceil(lo - 0.5))), min(W - 1, int(math.floor(hi - 0.5)))
+
+
+@numba.njit(cache=True, nogil=True)
+def _samples_clear(bound, table, edges, plane, low, local, samples, x, y, i):
+    """Whether every sample triangle i may cover (within COVER_PX of all its edges) is bounded
+    below the lowest depth the triangle may draw in that pixel: its plane at the pixel centre,
+    less `local`, or its lowest anywhere."""
+    H, W = bound.shape[:2]
+    top = max(0, int(math.floor(min(y[i, 0], min(y[i, 1], y[i, 2])) - REACH_PX - 0.5)))
+    bottom = min(H - 1, int(math.ceil(max(y[i, 0], max(y[i, 1], y[i, 2])) + REACH_PX)))
+    left = max(0.0, min(x[i, 0], min(x[i, 1], x[i, 2])) - REACH_PX)
+    right = min(float(W), max(x[i, 0], max(x[i, 1], x[i, 2])) + REACH_PX)
+    for r in range(top, bottom + 1):
+        a, b = _span(edges, i, r, left, right, W)
+        for c in range(a, b + 1):
+            nearest = max(low[i], plane[i, 0] * (c + 0.5) + plane[i, 1] * (r + 0.5) + plane[i, 2] - local[i])
+            if table[0, r, c] < nearest:
+                continue
+            for s in range(samples.shape[0]):
+                xs, ys = c + samples[s, 0], r + samples[s, 1]
+                if (edges[i, 0, 0] * xs + edges[i, 0, 1] * ys + edges[i, 0, 2] >= -COVER_PX
+                        and edges[i, 1, 0] * xs + edges[i, 1, 1] * ys + edges[i, 1, 2] >= -COVER_PX
+                        and edges[i, 2, 0] * xs + edges[i, 2, 1] * ys + edges[i, 2, 2] >= -COVER_PX
+                        and not bound[r, c, s] < nearest):
+                    return False
+    return True
+
+
+@numba.njit(cache=True, nogil=True)
+def _hidden(bound, table, tiles, edges, plane, low, local, ok, samples, x, y, out):
+    """out[i]: no sample triangle i may cover is left where it could win: tried on the tiles
+    under its box, then on the rows of pixels it may reach, then sample by sample."""
     for i in range(edges.shape[0]):
-        out[i] = False
-        if not ok[i]:
-            continue
-        if _within(tiles, x, y, i, low[i]):
-            out[i] = True
-            continue
-        top = max(0, int(math.floor(min(y[i, 0], min(y[i, 1], y[i, 2])) - REACH_PX - 0.5)))
-        bottom = min(H - 1, int(math.ceil(max(y[i, 0], max(y[i, 1], y[i, 2])) + REACH_PX)))
-        left = max(0.0, min(x[i, 0], min(x[i, 1], x[i, 2])) - REACH_PX)
-        right = min(float(W), max(x[i, 0], max(x[i, 1], x[i, 2])) + REACH_PX)
-        hidden = True
-        for r in range(top, bottom + 1):
-            yc = r + 0.5
-            lo, hi = left, right
-            for k in range(3):
-                a, rest = edges[i, k, 0], edges[i, k, 1] * yc + edges[i, k, 2] + REACH_PX
-                if a > 0:
-                    lo = max(lo, -rest / a)
-                elif a < 0:
-                    hi = min(hi, -rest / a)
-                elif rest < 0:
-                    hi = -1.0
-            if not lo <= hi:
-                continue
-            a, b = max(0, int(math.ceil(lo - 0.5))), min(W - 1, int(math.floor(hi - 0.5)))
-            if a > b:
-                continue
-            L = 0
-            while (2 << L) <= b - a + 1:
-                L += 1
-            if not max(table[L, r, a], table[L, r, b - (1 << L) + 1]) < low[i]:
-                hidden = False
-                break
-        out[i] = hidden
+        out[i] = ok[i] and (_within(tiles, x, y, i, low[i]) or _rows_clear(table, edges, low, x, y, i)
+                            or _samples_clear(bound, table, edges, plane, low, local, samples, x, y, i))
 
 
 _TABLES: dict[tuple[int, int, int], tuple[np.ndarray, np.ndarray]] = {}
@@ -358,9 +387,9 @@ def hidden(x: np.ndarray, y: np.ndarray, z: np.ndarray, front: np.ndarray, keys:
     H, W = seen.shape
     n = len(x)
     edges, plane, centre = np.zeros((n, 3, 3)), np.zeros((n, 3)), np.zeros((n, 2))
-    slack, low, ok = np.zeros(n), np.zeros(n), np.zeros(n, bool)
-    _setup(x, y, z, front, W, H, edges, plane, slack, low, centre, ok)
-    bound, pending = np.empty((H, W)), np.empty((_PENDING, 3), np.int64)
+    slack, low, local, ok = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n, bool)
+    _setup(x, y, z, front, W, H, edges, plane, slack, low, local, centre, ok)
+    bound, pending = np.empty((H, W, len(SAMPLES))), np.empty((_PENDING, 3), np.int64)
     adj = adjacency(keys)
     m = _certify(seen, edges, plane, slack, adj, ok, SAMPLES, bound, pending)
     _across(edges, plane, slack, centre, adj, ok, SAMPLES, pending[:m], bound)
@@ -371,5 +400,5 @@ def hidden(x: np.ndarray, y: np.ndarray, z: np.ndarray, front: np.ndarray, keys:
     table, tiles = _TABLES[levels, H, W]
     _row_max(bound, table, tiles)
     out = np.empty(n, bool)
-    _hidden(table, tiles, edges, low, ok, x, y, out)
+    _hidden(bound, table, tiles, edges, plane, low, local, ok, SAMPLES, x, y, out)
     return out
