@@ -1,11 +1,15 @@
 """The instance pass: the triangle the camera sees at each pixel centre, and its depth.
 
 pyrender's segmentation pass drew each node in one colour. This pass draws the same nodes in the
-same order through pyrender's own segmentation vertex shader into the same kind of buffers (4x
-multisampled, multisampling off, resolved by the same blits), so the depth and the winner at
+same order through pyrender's own segmentation vertex shader, so the depth and the winner at
 every pixel come out as they did, but its fragment shader writes the running number of the
 triangle instead: that names the actor (simgen.render's instance map) and the triangle that the
 colour pass's culling starts from (simgen.occlusion). All draws share one vertex buffer.
+
+pyrender drew into 4x multisampled buffers with multisampling off and resolved them by blits,
+whose depth blit moves a depth by a float32 round trip (`_blit_depth`). This pass draws into
+single-sample buffers, a quarter of the writes and no blits, and makes the same round trip on
+the depth it reads.
 """
 
 from __future__ import annotations
@@ -33,7 +37,7 @@ void main()
 # pyrender's location of the instance matrix for a primitive with positions only; the matrix is the
 # identity, given here as constant attributes rather than a buffer.
 _INST_M_LOC = 1
-_SAMPLES = 4  # as pyrender's main framebuffer
+_Z24 = 0xFFFFFF  # the largest 24-bit depth
 
 
 @dataclass
@@ -74,8 +78,7 @@ class _Target:
     """The GL objects of one context and image size."""
 
     program: _Program
-    multisampled: int  # framebuffer drawn into
-    resolved: int  # framebuffer read
+    framebuffer: int
     vao: int
     vbo: int
 
@@ -83,23 +86,20 @@ class _Target:
 _TARGETS: dict[tuple[int, int, int], _Target] = {}
 
 
-def _renderbuffer(fmt: int, width: int, height: int, samples: int) -> int:
+def _renderbuffer(fmt: int, width: int, height: int) -> int:
     rb = GL.glGenRenderbuffers(1)
     GL.glBindRenderbuffer(GL.GL_RENDERBUFFER, rb)
-    if samples:
-        GL.glRenderbufferStorageMultisample(GL.GL_RENDERBUFFER, samples, fmt, width, height)
-    else:
-        GL.glRenderbufferStorage(GL.GL_RENDERBUFFER, fmt, width, height)
+    GL.glRenderbufferStorage(GL.GL_RENDERBUFFER, fmt, width, height)
     return rb
 
 
-def _framebuffer(width: int, height: int, samples: int) -> int:
+def _framebuffer(width: int, height: int) -> int:
     fb = GL.glGenFramebuffers(1)
     GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, fb)
     GL.glFramebufferRenderbuffer(GL.GL_FRAMEBUFFER, GL.GL_COLOR_ATTACHMENT0, GL.GL_RENDERBUFFER,
-                                 _renderbuffer(GL.GL_R32UI, width, height, samples))
+                                 _renderbuffer(GL.GL_R32UI, width, height))
     GL.glFramebufferRenderbuffer(GL.GL_FRAMEBUFFER, GL.GL_DEPTH_ATTACHMENT, GL.GL_RENDERBUFFER,
-                                 _renderbuffer(GL.GL_DEPTH_COMPONENT24, width, height, samples))
+                                 _renderbuffer(GL.GL_DEPTH_COMPONENT24, width, height))
     return fb
 
 
@@ -110,8 +110,7 @@ def _target(width: int, height: int) -> _Target:
     if key not in _TARGETS:
         program = _Program()
         program._add_to_context()
-        _TARGETS[key] = _Target(program, _framebuffer(width, height, _SAMPLES),
-                                _framebuffer(width, height, 0), GL.glGenVertexArrays(1), GL.glGenBuffers(1))
+        _TARGETS[key] = _Target(program, _framebuffer(width, height), GL.glGenVertexArrays(1), GL.glGenBuffers(1))
     return _TARGETS[key]
 
 
@@ -133,7 +132,6 @@ def _state(width: int, height: int) -> None:
     GL.glDepthMask(GL.GL_TRUE)
     GL.glDepthFunc(GL.GL_LESS)
     GL.glDepthRange(0.0, 1.0)
-    GL.glDisable(GL.GL_MULTISAMPLE)
     GL.glEnable(GL.GL_CULL_FACE)
     GL.glCullFace(GL.GL_BACK)
     GL.glPolygonMode(GL.GL_FRONT_AND_BACK, GL.GL_FILL)
@@ -142,16 +140,21 @@ def _state(width: int, height: int) -> None:
     GL.glClear(GL.GL_DEPTH_BUFFER_BIT)
 
 
+def _blit_depth(z24: np.ndarray) -> np.ndarray:
+    """Window depths as read after llvmpipe's depth blit from 24-bit depths `z24`: the blit takes
+    a depth to float32 (times 1 / (2^24 - 1)) and back (times 2^24 - 1, rounded to even), in
+    float32, which moves some up by one step; the read divides by 2^24 - 1."""
+    f32 = np.float32
+    back = np.round(z24.astype(f32) * f32(1.0 / _Z24) * f32(_Z24))
+    return (np.minimum(back, _Z24) / float(_Z24)).astype(f32)
+
+
 def _read(target: _Target, width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
-    GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, target.multisampled)
-    GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, target.resolved)
-    GL.glBlitFramebuffer(0, 0, width, height, 0, 0, width, height, GL.GL_COLOR_BUFFER_BIT, GL.GL_NEAREST)
-    GL.glBlitFramebuffer(0, 0, width, height, 0, 0, width, height, GL.GL_DEPTH_BUFFER_BIT, GL.GL_NEAREST)
-    GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, target.resolved)
+    GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, target.framebuffer)
     ids = GL.glReadPixels(0, 0, width, height, GL.GL_RED_INTEGER, GL.GL_UNSIGNED_INT)
-    depth = GL.glReadPixels(0, 0, width, height, GL.GL_DEPTH_COMPONENT, GL.GL_FLOAT)
+    depth = GL.glReadPixels(0, 0, width, height, GL.GL_DEPTH_COMPONENT, GL.GL_UNSIGNED_INT)  # 24 bits, high
     return (np.frombuffer(ids, np.uint32).reshape(height, width)[::-1],
-            np.frombuffer(depth, np.float32).reshape(height, width)[::-1])
+            _blit_depth(np.frombuffer(depth, np.uint32).reshape(height, width)[::-1] >> 8))
 
 
 def draw(draws: list[Draw], view: np.ndarray, projection: np.ndarray, width: int, height: int
@@ -163,7 +166,7 @@ def draw(draws: list[Draw], view: np.ndarray, projection: np.ndarray, width: int
     target = _target(width, height)
     first = np.cumsum([0, *(len(d.tris) for d in draws)])
     _upload(target, np.concatenate([d.positions() for d in draws]) if draws else np.zeros((0, 3), np.float32))
-    GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, target.multisampled)
+    GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, target.framebuffer)
     _state(width, height)
     program = target.program
     program._bind()

@@ -34,7 +34,7 @@ SAMPLES = np.array([[0.375, 0.875], [0.875, 0.625], [0.125, 0.375], [0.625, 0.12
 # vertex snapping and float32 transform do to the edge.
 COVER_PX = 0.01
 # A triangle may cover a sample of a pixel only where the pixel's centre lies within this distance
-# (px) of its three edge lines: the samples lie within 0.4 px of the centre.
+# (px) of its box and of its three edge lines: the samples lie within 0.4 px of the centre.
 REACH_PX = 0.75
 # Window depth: llvmpipe's float32 vertex transform and depth interpolation and its 24-bit depth
 # (6e-8 a step) stay well within it; a triangle's depth gradient adds its slope over SLOPE_PX, over
@@ -49,6 +49,7 @@ SPAN_SHARE = 0.01
 GUARD_PX = 4096.0
 MIN_ASPECT = 1e-4
 WALK = 6  # steps across shared edges from a triangle seen at a pixel centre towards a sample
+TILE = 8  # px: a triangle whose box lies over tiles all bounded nearer than it is hidden at once
 _PENDING = 1 << 16  # samples on shared edges a frame resolves at most (the rest count as uncovered)
 # A pixel and its eight neighbours, row and column offsets.
 _DR = np.array([0, -1, 1, 0, 0, -1, -1, 1, 1])
@@ -74,27 +75,47 @@ def adjacency(keys: np.ndarray) -> np.ndarray:
     """(n, 3) int64: the triangle across each edge (corner k to corner k + 1) of triangles whose
     corners are the shared vertices `keys` (n, 3), where exactly two triangles share that edge;
     -1 elsewhere."""
-    n = len(keys)
-    a, b = keys, np.roll(keys, -1, axis=1)
-    span = int(keys.max()) + 1 if n else 1
-    edge = (np.minimum(a, b) * span + np.maximum(a, b)).ravel()
-    order = np.argsort(edge, kind="stable")
-    e = edge[order]
-    same = e[1:] == e[:-1]  # a pair begins at i where e[i] == e[i + 1]
-    pair = same.copy()
-    pair[1:] &= ~same[:-1]  # not the second or later of a run
-    pair[:-1] &= ~same[1:]  # nor the start of a run of three or more
-    i = np.flatnonzero(pair)
-    out = np.full(3 * n, -1, np.int64)
-    out[order[i]] = order[i + 1] // 3
-    out[order[i + 1]] = order[i] // 3
-    return out.reshape(n, 3)
+    out = np.full((len(keys), 3), -1, np.int64)
+    if len(keys):
+        _pair_edges(np.ascontiguousarray(keys, np.int64), out)
+    return out
 
 
 @numba.njit(cache=True, nogil=True)
-def _setup(x, y, z, front, width, height, edges, plane, slack, low, centre, ok):
+def _pair_edges(keys, out):
+    """`adjacency` from each vertex's triangles (a counting sort of the corners by vertex): the
+    triangles on edge (a, b) are those of a's that have b too."""
+    n, nv = keys.shape[0], keys.max() + 1
+    start = np.zeros(nv + 1, np.int64)
+    for t in range(n):
+        for k in range(3):
+            start[keys[t, k] + 1] += 1
+    for v in range(nv):
+        start[v + 1] += start[v]
+    fill, around = start[:-1].copy(), np.empty(3 * n, np.int64)
+    for t in range(n):
+        for k in range(3):
+            v = keys[t, k]
+            around[fill[v]] = t
+            fill[v] += 1
+    for t in range(n):
+        for k in range(3):
+            a, b = keys[t, k], keys[t, (k + 1) % 3]
+            other, found = -1, 0
+            for i in range(start[a], start[a + 1]):
+                u = around[i]
+                if u != t and (keys[u, 0] == b or keys[u, 1] == b or keys[u, 2] == b):
+                    other = u
+                    found += 1
+            if found == 1:
+                out[t, k] = other
+
+
+@numba.njit(cache=True, nogil=True)
+def _setup(x, y, z, front, width, height, edges, plane, slack, low, local, centre, ok):
     """Per triangle: normalised edge functions (inside >= 0, in px), depth plane, the depth slack
-    of a covering triangle, the lowest depth it may draw, its centroid, and whether it takes part."""
+    of a covering triangle, the lowest depth it may draw anywhere and how far below its plane at
+    a pixel centre it may draw in that pixel, its centroid, and whether it takes part."""
     for i in range(x.shape[0]):
         ok[i] = False
         good = True
@@ -127,6 +148,7 @@ def _setup(x, y, z, front, width, height, edges, plane, slack, low, centre, ok):
         slope = abs(p) + abs(q)
         slack[i] = base + (SLOPE_PX + 0.5) * slope
         low[i] = zmin - base - (SLOPE_PX + REACH_PX) * slope
+        local[i] = base + (SLOPE_PX + 0.5) * slope
         centre[i, 0], centre[i, 1] = (x0 + x1 + x2) / 3, (y0 + y1 + y2) / 3
         ok[i] = True
 
@@ -162,8 +184,8 @@ def _walk(edges, plane, slack, adj, ok, t, x, y, steps):
 
 @numba.njit(cache=True, nogil=True)
 def _certify(seen, edges, plane, slack, adj, ok, samples, out, pending):
-    """out[r, c]: the deepest bound over the pixel's samples of what covers each, inf where one
-    has none (or no triangle of the layers is seen at the pixel centre). Each sample's cover is
+    """out[r, c, s]: a bound of the depth of what covers sample s of the pixel, inf where no cover
+    is certain (or no triangle of the layers is seen at the pixel centre). Each sample's cover is
     searched among the triangles seen at the pixel and its neighbours (each once), then by
     walking from them across shared edges towards the sample. Samples on a shared edge are left
     to `_across`: rows of `pending` (pixel, sample, 3 u + k); returns how many."""
@@ -172,11 +194,11 @@ def _certify(seen, edges, plane, slack, adj, ok, samples, out, pending):
     m = 0
     for r in range(H):
         for c in range(W):
-            out[r, c] = np.inf
+            out[r, c, :] = np.inf
             own = seen[r, c]
             if own < 0 or not ok[own]:
                 continue
-            worst, n, waiting = -np.inf, 0, 0
+            n = 0
             for s in range(samples.shape[0]):
                 x, y = c + samples[s, 0], r + samples[s, 1]
                 best = _walk(edges, plane, slack, adj, ok, own, x, y, 0)
@@ -201,18 +223,10 @@ def _certify(seen, edges, plane, slack, adj, ok, samples, out, pending):
                             if best < -1.0:
                                 mark = best if mark == 0.0 else mark
                                 best = np.inf
-                if best == np.inf and mark < 0.0 and m + waiting < pending.shape[0]:
-                    pending[m + waiting, 0], pending[m + waiting, 1] = r * W + c, s
-                    pending[m + waiting, 2] = int(-2.0 - mark)
-                    waiting += 1
-                elif best == np.inf:
-                    worst = np.inf
-                    break
-                else:
-                    worst = max(worst, best)
-            if worst < np.inf:
-                out[r, c] = worst
-                m += waiting
+                if best == np.inf and mark < 0.0 and m < pending.shape[0]:
+                    pending[m, 0], pending[m, 1], pending[m, 2] = r * W + c, s, int(-2.0 - mark)
+                    m += 1
+                out[r, c, s] = best
     return m
 
 
@@ -222,7 +236,7 @@ def _across(edges, plane, slack, centre, adj, ok, samples, pending, out):
     t and inside its other two edges is covered by t or by the triangle across that edge, where
     that one lies on the edge's other side and has the sample inside its own other two edges
     (llvmpipe covers a point of an edge two triangles share by exactly one of them); the deeper
-    of the two bounds counts, or inf."""
+    of the two bounds is the sample's, or inf."""
     W = out.shape[1]
     for i in range(pending.shape[0]):
         p, s, tk = pending[i, 0], pending[i, 1], pending[i, 2]
@@ -243,61 +257,126 @@ def _across(edges, plane, slack, centre, adj, ok, samples, pending, out):
                     and (j == 2 or f2 >= COVER_PX)):
                 depth = max(plane[t, 0] * x + plane[t, 1] * y + plane[t, 2] + slack[t],
                             plane[u, 0] * x + plane[u, 1] * y + plane[u, 2] + slack[u])
-        out[r, c] = max(out[r, c], depth)
+        out[r, c, s] = depth
 
 
 @numba.njit(cache=True, nogil=True)
-def _row_max(z, table):
-    """table[L, r, c]: the largest of z[r, c:c + 2 ** L] (as far as the row goes)."""
-    H, W = z.shape
-    table[0] = z
+def _row_max(bound, table, tiles):
+    """table[L, r, c]: the largest bound of the samples of pixels r, c to c + 2 ** L - 1 (as far
+    as the row goes), and tiles[i, j]: the largest over the TILE x TILE pixels from (i TILE,
+    j TILE), in float32 rounded up (never below the bounds)."""
+    H, W = bound.shape[:2]
+    tiles[:] = -np.inf
+    for r in range(H):
+        for c in range(W):
+            z = bound[r, c, 0]
+            for s in range(1, bound.shape[2]):
+                z = max(z, bound[r, c, s])
+            v = np.float32(z)
+            if v < z:
+                v = np.nextafter(v, np.float32(np.inf))
+            table[0, r, c] = v
+            tiles[r // TILE, c // TILE] = max(tiles[r // TILE, c // TILE], v)
     for L in range(1, table.shape[0]):
         h = 1 << (L - 1)
         for r in range(H):
-            for c in range(W):
-                m = table[L - 1, r, c]
-                if c + h < W:
-                    m = max(m, table[L - 1, r, c + h])
-                table[L, r, c] = m
+            for c in range(W - h):
+                table[L, r, c] = max(table[L - 1, r, c], table[L - 1, r, c + h])
+            for c in range(max(0, W - h), W):
+                table[L, r, c] = table[L - 1, r, c]
 
 
 @numba.njit(cache=True, nogil=True)
-def _hidden(table, edges, low, ok, y, out):
+def _within(tiles, x, y, i, low):
+    """Whether every tile under triangle i's box, REACH_PX wider, has its bound below `low`."""
+    th, tw = tiles.shape
+    x0 = max(0, int(math.floor(min(x[i, 0], min(x[i, 1], x[i, 2])) - REACH_PX - 0.5)) // TILE)
+    x1 = min(tw - 1, int(math.ceil(max(x[i, 0], max(x[i, 1], x[i, 2])) + REACH_PX)) // TILE)
+    y0 = max(0, int(math.floor(min(y[i, 0], min(y[i, 1], y[i, 2])) - REACH_PX - 0.5)) // TILE)
+    y1 = min(th - 1, int(math.ceil(max(y[i, 0], max(y[i, 1], y[i, 2])) + REACH_PX)) // TILE)
+    for ty in range(y0, y1 + 1):
+        for tx in range(x0, x1 + 1):
+            if not tiles[ty, tx] < low:
+                return False
+    return True
+
+
+@numba.njit(cache=True, nogil=True)
+def _rows_clear(table, edges, low, x, y, i):
+    """Whether every pixel where triangle i may draw (its box and edge lines, REACH_PX wider) has
+    all its samples bounded below the lowest depth the triangle may draw anywhere."""
     levels, H, W = table.shape
-    for i in range(edges.shape[0]):
-        out[i] = False
-        if not ok[i]:
+    top = max(0, int(math.floor(min(y[i, 0], min(y[i, 1], y[i, 2])) - REACH_PX - 0.5)))
+    bottom = min(H - 1, int(math.ceil(max(y[i, 0], max(y[i, 1], y[i, 2])) + REACH_PX)))
+    left = max(0.0, min(x[i, 0], min(x[i, 1], x[i, 2])) - REACH_PX)
+    right = min(float(W), max(x[i, 0], max(x[i, 1], x[i, 2])) + REACH_PX)
+    for r in range(top, bottom + 1):
+        a, b = _span(edges, i, r, left, right, W)
+        if a > b:
             continue
-        top = max(0, int(math.floor(min(y[i, 0], min(y[i, 1], y[i, 2])) - REACH_PX - 0.5)))
-        bottom = min(H - 1, int(math.ceil(max(y[i, 0], max(y[i, 1], y[i, 2])) + REACH_PX)))
-        hidden = True
-        for r in range(top, bottom + 1):
-            yc = r + 0.5
-            lo, hi = -np.inf, np.inf
-            for k in range(3):
-                a, rest = edges[i, k, 0], edges[i, k, 1] * yc + edges[i, k, 2] + REACH_PX
-                if a > 0:
-                    lo = max(lo, -rest / a)
-                elif a < 0:
-                    hi = min(hi, -rest / a)
-                elif rest < 0:
-                    hi = -np.inf
-            if not lo <= hi:
-                continue
-            c0, c1 = max(0.0, math.ceil(lo - 0.5)), min(W - 1.0, math.floor(hi - 0.5))
-            if c0 > c1:
-                continue
-            a, b = int(c0), int(c1)
-            L = 0
-            while (2 << L) <= b - a + 1:
-                L += 1
-            if not max(table[L, r, a], table[L, r, b - (1 << L) + 1]) < low[i]:
-                hidden = False
-                break
-        out[i] = hidden
+        L = 0
+        while (2 << L) <= b - a + 1:
+            L += 1
+        if not max(table[L, r, a], table[L, r, b - (1 << L) + 1]) < low[i]:
+            return False
+    return True
 
 
-_TABLES: dict[tuple[int, int, int], np.ndarray] = {}
+@numba.njit(cache=True, nogil=True, inline="always")
+def _span(edges, i, r, left, right, W):
+    """The pixels of row r whose centres lie within REACH_PX of triangle i's edge lines and
+    between `left` and `right`: first and last column (first > last where none)."""
+    yc = r + 0.5
+    lo, hi = left, right
+    for k in range(3):
+        a, rest = edges[i, k, 0], edges[i, k, 1] * yc + edges[i, k, 2] + REACH_PX
+        if a > 0:
+            lo = max(lo, -rest / a)
+        elif a < 0:
+            hi = min(hi, -rest / a)
+        elif rest < 0:
+            hi = -1.0
+    if not lo <= hi:
+        return 1, 0
+    return max(0, int(math.ceil(lo - 0.5))), min(W - 1, int(math.floor(hi - 0.5)))
+
+
+@numba.njit(cache=True, nogil=True)
+def _samples_clear(bound, table, edges, plane, low, local, samples, x, y, i):
+    """Whether every sample triangle i may cover (within COVER_PX of all its edges) is bounded
+    below the lowest depth the triangle may draw in that pixel: its plane at the pixel centre,
+    less `local`, or its lowest anywhere."""
+    H, W = bound.shape[:2]
+    top = max(0, int(math.floor(min(y[i, 0], min(y[i, 1], y[i, 2])) - REACH_PX - 0.5)))
+    bottom = min(H - 1, int(math.ceil(max(y[i, 0], max(y[i, 1], y[i, 2])) + REACH_PX)))
+    left = max(0.0, min(x[i, 0], min(x[i, 1], x[i, 2])) - REACH_PX)
+    right = min(float(W), max(x[i, 0], max(x[i, 1], x[i, 2])) + REACH_PX)
+    for r in range(top, bottom + 1):
+        a, b = _span(edges, i, r, left, right, W)
+        for c in range(a, b + 1):
+            nearest = max(low[i], plane[i, 0] * (c + 0.5) + plane[i, 1] * (r + 0.5) + plane[i, 2] - local[i])
+            if table[0, r, c] < nearest:
+                continue
+            for s in range(samples.shape[0]):
+                xs, ys = c + samples[s, 0], r + samples[s, 1]
+                if (edges[i, 0, 0] * xs + edges[i, 0, 1] * ys + edges[i, 0, 2] >= -COVER_PX
+                        and edges[i, 1, 0] * xs + edges[i, 1, 1] * ys + edges[i, 1, 2] >= -COVER_PX
+                        and edges[i, 2, 0] * xs + edges[i, 2, 1] * ys + edges[i, 2, 2] >= -COVER_PX
+                        and not bound[r, c, s] < nearest):
+                    return False
+    return True
+
+
+@numba.njit(cache=True, nogil=True)
+def _hidden(bound, table, tiles, edges, plane, low, local, ok, samples, x, y, out):
+    """out[i]: no sample triangle i may cover is left where it could win: tried on the tiles
+    under its box, then on the rows of pixels it may reach, then sample by sample."""
+    for i in range(edges.shape[0]):
+        out[i] = ok[i] and (_within(tiles, x, y, i, low[i]) or _rows_clear(table, edges, low, x, y, i)
+                            or _samples_clear(bound, table, edges, plane, low, local, samples, x, y, i))
+
+
+_TABLES: dict[tuple[int, int, int], tuple[np.ndarray, np.ndarray]] = {}
 
 
 def hidden(x: np.ndarray, y: np.ndarray, z: np.ndarray, front: np.ndarray, keys: np.ndarray,
@@ -308,17 +387,18 @@ def hidden(x: np.ndarray, y: np.ndarray, z: np.ndarray, front: np.ndarray, keys:
     H, W = seen.shape
     n = len(x)
     edges, plane, centre = np.zeros((n, 3, 3)), np.zeros((n, 3)), np.zeros((n, 2))
-    slack, low, ok = np.zeros(n), np.zeros(n), np.zeros(n, bool)
-    _setup(x, y, z, front, W, H, edges, plane, slack, low, centre, ok)
-    bound, pending = np.empty((H, W)), np.empty((_PENDING, 3), np.int64)
+    slack, low, local, ok = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n, bool)
+    _setup(x, y, z, front, W, H, edges, plane, slack, low, local, centre, ok)
+    bound, pending = np.empty((H, W, len(SAMPLES))), np.empty((_PENDING, 3), np.int64)
     adj = adjacency(keys)
     m = _certify(seen, edges, plane, slack, adj, ok, SAMPLES, bound, pending)
     _across(edges, plane, slack, centre, adj, ok, SAMPLES, pending[:m], bound)
     levels = max(1, int(W).bit_length())
-    table = _TABLES.get((levels, H, W))
-    if table is None:
-        table = _TABLES.setdefault((levels, H, W), np.empty((levels, H, W)))
-    _row_max(bound, table)
+    if (levels, H, W) not in _TABLES:  # made once: 20 MB a frame to fill anew
+        _TABLES[levels, H, W] = (np.empty((levels, H, W), np.float32),
+                                 np.empty((-(-H // TILE), -(-W // TILE)), np.float32))
+    table, tiles = _TABLES[levels, H, W]
+    _row_max(bound, table, tiles)
     out = np.empty(n, bool)
-    _hidden(table, edges, low, ok, y, out)
+    _hidden(bound, table, tiles, edges, plane, low, local, ok, SAMPLES, x, y, out)
     return out

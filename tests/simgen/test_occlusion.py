@@ -10,7 +10,7 @@ import pyrender
 import pytest
 from pyrender.constants import RenderFlags
 
-from simgen import occlusion
+from simgen import instance_pass, occlusion
 from simgen import render as R
 from simgen.sample import sample_world
 from simgen.spec import load_spec
@@ -84,6 +84,16 @@ def test_a_triangle_off_the_image_is_hidden_one_across_the_near_plane_is_kept():
     front[2, 0] = False  # a corner behind the camera: its screen position means nothing
     keys = np.arange(3 * len(tris)).reshape(-1, 3)
     assert not occlusion.hidden(x, y, z, front, keys, _seen_wall())[2]
+
+
+def test_the_depth_blits_round_trip_by_hand():
+    """A 24-bit depth through float32 and back (times 1 / (2^24 - 1), then 2^24 - 1, rounded):
+    some move up one step (8388607, 16777214: float32 rounds the product above them), others and
+    the largest depth stay; read, each is divided by 2^24 - 1."""
+    z24 = np.array([0, 2, 8388607, 8388608, 16777214, 16777215], np.uint32)
+    got = instance_pass._blit_depth(z24)
+    moved = np.array([0, 2, 8388608, 8388608, 16777215, 16777215])
+    assert np.array_equal(got, (moved / 16777215.0).astype(np.float32))
 
 
 _PLAIN: dict[tuple[int, int], pyrender.OffscreenRenderer] = {}
