@@ -171,8 +171,9 @@ def steps(checkouts: dict[str, Path], frames: int) -> None:
         print(f"  {name:9s} " + "  ".join(f"{k} {v:7.1f} ms" for k, v in ms.items()) + ratio)
     print("LiDAR sweep against the bare Embree query of its rays (bench_lidar.py, this tree):")
     for ln in bench_lines(checkouts["head"], "bench_lidar.py", "--frames", "1", "--timing-frames", "3",
-                          "--repeats", "5", pattern=r"^\s+(16|32|64|128)\b.*x"):
-        print("  " + ln.strip())
+                          "--repeats", "5",
+                          pattern=r"^(one core|\s+wall time|beams|\s*(16|32|64|128) )"):
+        print("  " + ln)
 
 
 def main() -> None:
