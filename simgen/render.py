@@ -768,9 +768,9 @@ class BuiltScene:
         clip = self._projection(r) @ np.linalg.inv(self.scene.get_pose(self.scene.main_camera_node))
         corners, keys, base = [], [], 0
         for layer in self.layers:
-            at = clip @ self.scene.get_pose(layer.node)
-            corners += [occlusion.screen(p.positions.reshape(-1, 3, 3), at, r.viewport_width, r.viewport_height)
-                        for p in layer.primitives]
+            positions = np.concatenate([p.positions for p in layer.primitives]).reshape(-1, 3, 3)
+            corners.append(occlusion.screen(positions, clip @ self.scene.get_pose(layer.node),
+                                            r.viewport_width, r.viewport_height))
             k = np.concatenate(layer.keys).astype(np.int64)
             keys.append(k + base)
             base += int(k.max()) + 1 if len(k) else 0
