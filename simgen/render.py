@@ -673,21 +673,21 @@ class _Static:
             drawn[w.faces[k]] = True
         rgba = np.zeros((len(self.tris), 4))  # shaded where drawn
         rgba[drawn] = self.shader.colors(self.parts, self.tris, self.normals, False, self.layout.gain, only=drawn)
-        return [self._primitive(w, k, rgba) for w, k in zip(self.wears, keep) if k.any()]
+        return [self._wear(w, k, rgba) for w, k in zip(self.wears, keep) if k.any()]
 
-    def _primitive(self, w: _Wear, keep: np.ndarray, rgba: np.ndarray) -> pyrender.Primitive:
+    def _wear(self, w: _Wear, keep: np.ndarray, rgba: np.ndarray) -> pyrender.Primitive:
         g = w.faces[keep]
         if w.wearing is None:
             return _primitive(self.tris[g], self.shader.gl_normals(self.normals[g]), rgba[g], _PLAIN)
-        worn, at = w.wearing, w.among[keep]
-        own = slice(self.first[worn.part], self.first[worn.part + 1])  # the part's faces
-        t, n = self.tris[own][worn.faces], self.normals[own][worn.faces]
+        worn = w.wearing
         if worn.kind in FACADE_KINDS:  # from the whole wall, drawn or not
-            uv = facade_uv(t, n, worn.tile, worn.shift)[at]
+            own = slice(self.first[worn.part], self.first[worn.part + 1])  # the part's faces
+            t, n = self.tris[own][worn.faces], self.normals[own][worn.faces]
+            uv = facade_uv(t, n, worn.tile, worn.shift)[w.among[keep]]
         else:  # face by face
-            uv = _planar_uv(t[at], n[at], worn.tile, worn.shift)
+            uv = _planar_uv(self.tris[g], self.normals[g], worn.tile, worn.shift)
         colour = rgba[g] * np.array([textures.MAX_GAIN] * 3 + [1.0])
-        return _primitive(t[at], None, colour, _textured(worn.kind, worn.variant), uv)  # lit: flat
+        return _primitive(self.tris[g], None, colour, _textured(worn.kind, worn.variant), uv)  # lit: flat
 
 
 def _static_mesh(parts: list[Part], shader: _Shader, world: World, view: _View
