@@ -197,9 +197,17 @@ class _Scene(pyrender.Scene):
 
 class _ColourRenderer(pyrender.Renderer):
     """pyrender's renderer for the colour pass alone (the instance pass gives the depth): it
-    resolves and reads the colour buffer as pyrender does, and leaves the depth buffer unread."""
+    resolves and reads the colour buffer as pyrender does, and leaves the depth buffer unread.
+    `meanwhile`, where set, runs after the draws are sent and before the read, while llvmpipe's
+    threads rasterize; its result is kept in `meanwhile_result`."""
+
+    meanwhile: Callable[[], object] | None = None
+    meanwhile_result: object = None
 
     def _read_main_framebuffer(self, scene, flags):
+        if self.meanwhile is not None:
+            GL.glFlush()
+            self.meanwhile_result = self.meanwhile()
         width, height = self._main_fb_dims
         GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._main_fb_ms)
         GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, self._main_fb)
@@ -813,9 +821,17 @@ class BuiltScene:
                                            else first[i.drawn_as[0]] + i.drawn_as[1] for i in todo)])
         return Seen(np.take(actor, ids), _metres(z, camera.camera), np.take(triangle.astype(np.int64), ids))
 
-    def colour_pass(self, r: pyrender.OffscreenRenderer, seen: Seen | None = None) -> np.ndarray:
+    def colour_pass(self, r: pyrender.OffscreenRenderer, seen: Seen | None = None,
+                    meanwhile: Callable[[], object] | None = None) -> np.ndarray | tuple[np.ndarray, object]:
         """The colour image (RGBA in the lit look: alpha is the light that is not direct sun);
-        with `seen`, the layers' hidden triangles left out."""
+        with `seen`, the layers' hidden triangles left out. With `meanwhile`, also its result:
+        it runs on the CPU while llvmpipe draws."""
+        if meanwhile is not None:
+            r._renderer.meanwhile = meanwhile
+            try:
+                return self.colour_pass(r, seen), r._renderer.meanwhile_result
+            finally:
+                r._renderer.meanwhile, r._renderer.meanwhile_result = None, None
         hidden = None if seen is None else self._hidden(r, seen.triangle)
         first = 0
         for layer in self.layers:
@@ -959,17 +975,29 @@ def _shade_tint(time: str) -> np.ndarray:
 _LINEAR = ((np.arange(256) / 255.0) ** 2.2).astype(np.float32)  # gamma-encoded 8-bit value -> linear
 
 
+def skylight(world: World, depth: np.ndarray, instance: np.ndarray, casters: Casters) -> np.ndarray | None:
+    """The share of the sky the actors hide from the ground (sky_occlusion), where the look has
+    shadows (None elsewhere): from the instance pass alone, so it can run while the colour pass
+    draws."""
+    if not world.appearance.shadows:
+        return None
+    rig = world.rig
+    return sky_occlusion(casters.actors, casters.reach, depth, instance == 0, rig.intrinsics(), rig.cam2_from_world())
+
+
 def shade(world: World, color: np.ndarray, depth: np.ndarray, instance: np.ndarray,
-          casters: Casters) -> np.ndarray:
+          casters: Casters, sky: np.ndarray | None = None) -> np.ndarray:
     """The lit colour pass (RGBA, alpha = the light left in shadow) with the sun's shadows and the
-    actors' occlusion of the sky on the ground (instance 0) applied, as (H, W, 3) uint8."""
+    actors' occlusion of the sky on the ground (instance 0; `skylight`'s, made here where not
+    given) applied, as (H, W, 3) uint8."""
     rgb = color[..., :3]
     if not world.appearance.shadows:
         return rgb
     rig = world.rig
     K, cam2_from_world = rig.intrinsics(), rig.cam2_from_world()
     sun = sun_shadow(casters.every(), depth, K, cam2_from_world, _to_sun(world.light), color[..., 3] < 250)
-    sky = sky_occlusion(casters.actors, casters.reach, depth, instance == 0, K, cam2_from_world)
+    if sky is None:
+        sky = skylight(world, depth, instance, casters)
     # Only darkened pixels change (elsewhere the factor is exactly 1).
     out = cv2.cvtColor(color, cv2.COLOR_RGBA2RGB)  # a copy of rgb, faster than numpy's 3 bytes at a time
     hit = np.flatnonzero((sun != 0) | (sky != 0))
@@ -995,8 +1023,11 @@ def render(world: World) -> RenderOutput:
     r = renderer(rig.width, rig.height)
     built = build_scene(world)
     seen = built.instance_pass(r)
-    color = built.colour_pass(r, seen)
     lit = bool(built.flags & RenderFlags.RGBA)
-    rgb = shade(world, color, seen.depth, seen.instance, built.casters) if lit else color[..., :3]
+    if lit:
+        color, sky = built.colour_pass(r, seen, lambda: skylight(world, seen.depth, seen.instance, built.casters))
+        rgb = shade(world, color, seen.depth, seen.instance, built.casters, sky)
+    else:
+        rgb = built.colour_pass(r, seen)[..., :3]
     return RenderOutput(np.ascontiguousarray(rgb), seen.depth.astype(np.float32), seen.instance,
                         HEADROOM if lit else 1.0)
