@@ -23,6 +23,7 @@ slivers are kept.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numba
 import numpy as np
@@ -360,22 +361,43 @@ def _hidden(bound, pixels, tiles, edges, plane, low, local, ok, samples, x, y, o
 
 
 
-def hidden(x: np.ndarray, y: np.ndarray, z: np.ndarray, front: np.ndarray, keys: np.ndarray,
-           seen: np.ndarray) -> np.ndarray:
-    """(n,) bool: which of the colour pass's triangles win no sample. x, y, z, front: their
-    corners on screen (`screen`); keys (n, 3): their shared vertices (equal keys, equal bits);
-    seen (H, W) int64: the triangle seen at each pixel centre, -1 where none of them."""
-    H, W = seen.shape
+@dataclass
+class Triangles:
+    """The colour pass's triangles as the culling reads them (`prepare`)."""
+
+    x: np.ndarray  # (n, 3) window x of the corners
+    y: np.ndarray  # (n, 3) image rows (down)
+    edges: np.ndarray  # (n, 3, 3) normalised edge functions, inside >= 0
+    plane: np.ndarray  # (n, 3) window depth = p x + q y + r
+    slack: np.ndarray  # (n,) depth slack as a covering triangle
+    low: np.ndarray  # (n,) lowest depth it may draw anywhere
+    local: np.ndarray  # (n,) how far below its plane at a pixel centre it may draw in that pixel
+    centre: np.ndarray  # (n, 2)
+    ok: np.ndarray  # (n,) bool: takes part
+    adj: np.ndarray  # (n, 3) the triangle across each edge
+
+
+def prepare(x: np.ndarray, y: np.ndarray, z: np.ndarray, front: np.ndarray, keys: np.ndarray,
+            width: int, height: int) -> Triangles:
+    """The colour pass's triangles: x, y, z, front their corners on screen (`screen`); keys (n, 3)
+    their shared vertices (equal keys, equal bits). What needs no image, made while the instance
+    pass draws."""
     n = len(x)
-    edges, plane, centre = np.zeros((n, 3, 3)), np.zeros((n, 3)), np.zeros((n, 2))
-    slack, low, local, ok = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n, bool)
-    _setup(x, y, z, front, W, H, edges, plane, slack, low, local, centre, ok)
+    t = Triangles(x, y, np.zeros((n, 3, 3)), np.zeros((n, 3)), np.zeros(n), np.zeros(n), np.zeros(n),
+                  np.zeros((n, 2)), np.zeros(n, bool), adjacency(keys))
+    _setup(x, y, z, front, width, height, t.edges, t.plane, t.slack, t.low, t.local, t.centre, t.ok)
+    return t
+
+
+def hidden(t: Triangles, seen: np.ndarray) -> np.ndarray:
+    """(n,) bool: which of the colour pass's triangles win no sample. seen (H, W) int64: the
+    triangle seen at each pixel centre, -1 where none of them."""
+    H, W = seen.shape
     bound = np.empty((H, W, len(SAMPLES)))
-    adj = adjacency(keys)
-    _certify(seen, edges, plane, slack, adj, ok, SAMPLES, bound)
-    _across(edges, plane, slack, centre, adj, ok, SAMPLES, bound)
+    _certify(seen, t.edges, t.plane, t.slack, t.adj, t.ok, SAMPLES, bound)
+    _across(t.edges, t.plane, t.slack, t.centre, t.adj, t.ok, SAMPLES, bound)
     pixels, tiles = np.empty((H, W), np.float32), np.empty((-(-H // TILE), -(-W // TILE)), np.float32)
     _maxima(bound, pixels, tiles)
-    out = np.empty(n, bool)
-    _hidden(bound, pixels, tiles, edges, plane, low, local, ok, SAMPLES, x, y, out)
+    out = np.empty(len(t.x), bool)
+    _hidden(bound, pixels, tiles, t.edges, t.plane, t.low, t.local, t.ok, SAMPLES, t.x, t.y, out)
     return out

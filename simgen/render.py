@@ -795,14 +795,15 @@ class Seen:
 class BuiltScene:
     """A world's pyrender scene at t = 0 (what the colour pass draws) with what its two passes
     need: the nodes of the instance pass, the colour pass's render flags, its layers (the nodes
-    whose hidden triangles it leaves out), and what darkens it (shadow casters, the actors'
-    reach)."""
+    whose hidden triangles it leaves out, and their triangles as the culling reads them), and
+    what darkens it (shadow casters, the actors' reach)."""
 
     scene: pyrender.Scene
     instances: list[_Instance]
     flags: int
     layers: list[_Layer]
     casters: Casters
+    triangles: occlusion.Triangles | None = None  # the layers' triangles, made by the instance pass
 
     def instance_pass(self, r: pyrender.OffscreenRenderer) -> Seen:
         """Actor ids, depth and triangles seen. Depth from this single-sample pass: the
@@ -814,7 +815,7 @@ class BuiltScene:
         todo = [self.instances[k] for k in order]
         r._platform.make_current()
         ids, z = instance_pass.draw([i.draw for i in todo], view, self._projection(r), r.viewport_width,
-                                    r.viewport_height)
+                                    r.viewport_height, lambda: self._prepare(r))
         r._platform.make_uncurrent()
         actor = np.concatenate([[0], *(np.full(len(i.draw.tris), i.actor) for i in todo)]).astype(np.uint16)
         triangle = np.concatenate([[-1], *(np.full(len(i.draw.tris), -1) if i.drawn_as is None
@@ -845,8 +846,9 @@ class BuiltScene:
     def _projection(self, r: pyrender.OffscreenRenderer) -> np.ndarray:
         return self.scene.main_camera_node.camera.get_projection_matrix(r.viewport_width, r.viewport_height)
 
-    def _hidden(self, r: pyrender.OffscreenRenderer, triangle: np.ndarray) -> np.ndarray:
-        """(n,) bool over the layers' triangles: those that win no sample of the colour pass."""
+    def _prepare(self, r: pyrender.OffscreenRenderer) -> None:
+        """The layers' triangles as the culling reads them (occlusion.prepare): no image needed,
+        so made while llvmpipe draws the instance pass."""
         clip = self._projection(r) @ np.linalg.inv(self.scene.get_pose(self.scene.main_camera_node))
         corners, keys, base = [], [], 0
         for layer in self.layers:
@@ -856,7 +858,13 @@ class BuiltScene:
             keys.append(k + base)
             base += int(k.max()) + 1 if len(k) else 0
         x, y, z, front = (np.concatenate(c) for c in zip(*corners))
-        return occlusion.hidden(x, y, z, front, np.concatenate(keys), triangle)
+        self.triangles = occlusion.prepare(x, y, z, front, np.concatenate(keys), r.viewport_width, r.viewport_height)
+
+    def _hidden(self, r: pyrender.OffscreenRenderer, triangle: np.ndarray) -> np.ndarray:
+        """(n,) bool over the layers' triangles: those that win no sample of the colour pass."""
+        if self.triangles is None:
+            self._prepare(r)
+        return occlusion.hidden(self.triangles, triangle)
 
 
 def _shown(primitives: list[pyrender.Primitive], keep: list[np.ndarray]) -> list[pyrender.Primitive]:
