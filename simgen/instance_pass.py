@@ -50,10 +50,6 @@ class Draw:
     pose: np.ndarray
     transparent: bool
 
-    def positions(self) -> np.ndarray:
-        """(3n, 3) float32 corners, as pyrender uploads a primitive's positions."""
-        return self.tris.reshape(-1, 3).astype(np.float32)
-
 
 def order(draws: list[Draw], camera: np.ndarray) -> list[int]:
     """pyrender's draw order: the solid nodes farthest from the camera position first, then the
@@ -166,7 +162,10 @@ def draw(draws: list[Draw], view: np.ndarray, projection: np.ndarray, width: int
     given, runs while llvmpipe rasterizes. The caller makes the renderer's context current."""
     target = _target(width, height)
     first = np.cumsum([0, *(len(d.tris) for d in draws)])
-    _upload(target, np.concatenate([d.positions() for d in draws]) if draws else np.zeros((0, 3), np.float32))
+    positions = np.empty((3 * first[-1], 3), np.float32)  # as pyrender uploads each: float32
+    for d, start in zip(draws, first):
+        positions[3 * start:3 * (start + len(d.tris))] = d.tris.reshape(-1, 3)
+    _upload(target, positions)
     GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, target.framebuffer)
     _state(width, height)
     program = target.program

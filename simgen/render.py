@@ -33,13 +33,14 @@ import os
 os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 
 from collections.abc import Callable, Iterable, MutableSet  # noqa: E402
-from dataclasses import dataclass, field  # noqa: E402
+from dataclasses import dataclass  # noqa: E402
+from functools import cache  # noqa: E402
 
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 import pyrender  # noqa: E402
 from OpenGL import GL  # noqa: E402
-from pyrender.constants import RenderFlags  # noqa: E402
+from pyrender.constants import ProgramFlags, RenderFlags  # noqa: E402
 
 from . import facets, instance_pass, occlusion, textures  # noqa: E402
 from .camera import LUMA  # noqa: E402
@@ -204,6 +205,51 @@ class _ColourRenderer(pyrender.Renderer):
     meanwhile: Callable[[], object] | None = None
     meanwhile_result: object = None
 
+    def _forward_pass(self, scene, flags, seg_node_map=None):
+        """pyrender's forward pass, for the flat looks with one program bound, the camera's
+        uniforms set and the state of pyrender's materials here (opaque, double-sided, filled)
+        once per program rather than once per primitive: the same draws, uniforms and state."""
+        if not flags & RenderFlags.FLAT or flags & RenderFlags.SEG:
+            return super()._forward_pass(scene, flags, seg_node_map)
+        self._configure_forward_pass_viewport(flags)
+        GL.glClearColor(*scene.bg_color)
+        GL.glClear(GL.GL_COLOR_BUFFER_BIT | GL.GL_DEPTH_BUFFER_BIT)
+        GL.glEnable(GL.GL_MULTISAMPLE)
+        GL.glEnable(GL.GL_BLEND)
+        GL.glBlendFunc(GL.GL_ONE, GL.GL_ZERO)
+        GL.glPolygonMode(GL.GL_FRONT_AND_BACK, GL.GL_FILL)
+        GL.glDisable(GL.GL_CULL_FACE)
+        GL.glDisable(GL.GL_PROGRAM_POINT_SIZE)
+        V, P = self._get_camera_matrices(scene)
+        program = None
+        for node in self._sorted_mesh_nodes(scene):
+            if not node.mesh.is_visible:
+                continue
+            pose = scene.get_pose(node)
+            for primitive in node.mesh.primitives:
+                material = primitive.material
+                if not material.doubleSided or material.alphaMode == "BLEND" or material.wireframe:
+                    raise ValueError("the flat colour pass draws opaque, double-sided, filled materials")
+                chosen = self._get_primitive_program(primitive, flags, ProgramFlags.USE_MATERIAL)
+                if chosen is not program:
+                    program = chosen
+                    program._bind()
+                    program.set_uniform("V", V)
+                    program.set_uniform("P", P)
+                program.set_uniform("M", pose)
+                primitive._bind()
+                if material.baseColorTexture is not None:
+                    GL.glActiveTexture(GL.GL_TEXTURE0)
+                    material.baseColorTexture._bind()
+                    program.set_uniform("material.base_color_texture", 0)
+                program.set_uniform("material.base_color_factor", material.baseColorFactor)
+                GL.glDrawArraysInstanced(primitive.mode, 0, len(primitive.positions), 1)
+        GL.glBindVertexArray(0)
+        if program is not None:
+            program._unbind()
+        GL.glFlush()
+        return self._read_main_framebuffer(scene, flags)
+
     def _read_main_framebuffer(self, scene, flags):
         if self.meanwhile is not None:
             GL.glFlush()
@@ -312,19 +358,18 @@ class _Shader:
         `corner_normals` (F, 3, 3) the lit look shades each corner of each face with its own
         normal, (F, 3, 4), and the rasteriser blends them across the face. `glow` (P, 3): the
         linear radiance each part emits (lit look only; lit stop lamps)."""
-        counts = [len(p.mesh.faces) for p in parts]
         pick = (lambda a: a) if only is None else (lambda a: a[only])
+        owner = pick(np.repeat(np.arange(len(parts)), [len(p.mesh.faces) for p in parts]))  # each face's part
         if self.mode == "thermal":
-            rgb = pick(np.repeat(np.array([_thermal(p, moving) for p in parts]), counts, axis=0))
+            rgb = np.array([_thermal(p, moving) for p in parts])[owner]
             return np.c_[rgb, np.ones(len(rgb))]
-        albedo = np.repeat(np.array([p.material.color for p in parts], float), counts, axis=0)
+        albedo = np.array([p.material.color for p in parts], float)[owner]
         if albedo_gain is not None:
-            albedo = albedo * np.repeat(albedo_gain, counts, axis=0)
-        albedo = pick(albedo)
+            albedo = albedo * albedo_gain[owner]
         if self.mode == "pbr":
             return np.c_[albedo, np.ones(len(albedo))]
-        glossy = pick(np.repeat([p.material.name in GLOSSY for p in parts], counts))
-        emitted = None if glow is None else pick(np.repeat(glow, counts, axis=0))
+        glossy = np.array([p.material.name in GLOSSY for p in parts])[owner]
+        emitted = None if glow is None else glow[owner]
         tris, normals = pick(tris), pick(normals)
         if corner_normals is None:
             centres = (tris[:, 0] + tris[:, 1] + tris[:, 2]) / 3  # the mean over corners, in its order
@@ -749,10 +794,10 @@ def _sky_texture(rng: np.random.Generator, cover: float, headroom: float) -> np.
     return np.clip(np.round((sky / headroom) ** (1 / 2.2) * 255), 0, 255).astype(np.uint8)
 
 
-def _sky_dome(world: World, headroom: float, eye: np.ndarray) -> _Layer:
-    """A textured dome around the camera (at `eye`) for the lit looks (not in the instance pass:
-    its pixels keep depth 0 and instance 0)."""
-    rng = factor_rng(world.seed, world.frame_index, "sky")
+@cache
+def _dome() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The sky dome's triangles (about its centre), texture coordinates and faces (indexing its
+    grid's vertices), made once."""
     az = np.linspace(0, 2 * np.pi, 49)
     el = np.linspace(_DOME_LOW, np.pi / 2, 13)
     A, E = np.meshgrid(az, el)
@@ -761,7 +806,14 @@ def _sky_dome(world: World, headroom: float, eye: np.ndarray) -> _Layer:
     i, j = np.meshgrid(np.arange(12), np.arange(48), indexing="ij")
     quads = np.stack([i * 49 + j, i * 49 + j + 1, (i + 1) * 49 + j + 1, (i + 1) * 49 + j], -1).reshape(-1, 4)
     faces = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
-    tris, uv = P.reshape(-1, 3)[faces], UV.reshape(-1, 2)[faces]
+    return P.reshape(-1, 3)[faces], UV.reshape(-1, 2)[faces], faces
+
+
+def _sky_dome(world: World, headroom: float, eye: np.ndarray) -> _Layer:
+    """A textured dome around the camera (at `eye`) for the lit looks (not in the instance pass:
+    its pixels keep depth 0 and instance 0)."""
+    rng = factor_rng(world.seed, world.frame_index, "sky")
+    tris, uv, faces = _dome()
     tex = pyrender.Texture(source=_sky_texture(rng, world.appearance.cloud_cover, headroom),
                            source_channels="RGB")
     mat = pyrender.MetallicRoughnessMaterial(baseColorTexture=tex, metallicFactor=0.0, doubleSided=True)

@@ -120,7 +120,7 @@ def test_the_instance_pass_draws_as_pyrenders_segmentation_pass(spec, frame):
     seg = {}
     for i in built.instances:
         alpha = np.full((len(i.draw.tris) * 3, 4), 0.5 if i.draw.transparent else 1.0)
-        mesh = pyrender.Mesh([pyrender.Primitive(positions=i.draw.positions(), color_0=alpha)])
+        mesh = pyrender.Mesh([pyrender.Primitive(positions=i.draw.tris.reshape(-1, 3).astype(np.float32), color_0=alpha)])
         seg[scene.add(mesh, pose=i.draw.pose)] = (i.actor % 256, i.actor // 256, 0)
     scene.add_node(pyrender.Node(camera=built.scene.main_camera_node.camera,
                                  matrix=built.scene.get_pose(built.scene.main_camera_node)))
