@@ -2,7 +2,8 @@
 
 Prints (1) the world sampling time (scenery and actor meshes) and the render time per 1242x375
 frame of scenes/urban.yaml, split into scene build, segmentation+depth pass (simgen.instance_pass,
-drawn first), colour pass (4x MSAA, with the culling of its hidden triangles), sun shadows
+drawn first), colour pass (4x MSAA, with the culling of its hidden triangles; the actors'
+occlusion of the sky is computed while llvmpipe draws it, and counted here), sun shadows
 (Embree), the look and camera (fog/rain/sensor, exposure,
 noise, demosaicing; beside it the same with the camera's rectification off, the CFA on the output's
 own pixels, timed in the same loop) and the label derivation; (2) complete frames per second
@@ -30,7 +31,7 @@ from simgen.factors import factor_rng
 from simgen.generate import generate
 from simgen.labels import derive
 from simgen.look import apply_look
-from simgen.render import HEADROOM, build_scene, renderer, shade
+from simgen.render import HEADROOM, build_scene, renderer, shade, skylight
 from simgen.sample import sample_world
 from simgen.spec import load_spec
 from testbed.backends import LocalBackend
@@ -53,11 +54,14 @@ def render_breakdown(spec, n: int) -> None:
         t1 = time.perf_counter()
         seen = built.instance_pass(r)
         t2 = time.perf_counter()
-        color = built.colour_pass(r, seen)
-        t3 = time.perf_counter()
         inst, depth = seen.instance, seen.depth
         lit = bool(built.flags & RenderFlags.RGBA)
-        rgb = shade(w, color, depth, inst, built.casters) if lit else color[..., :3]
+        if lit:  # as simgen.render.render: the sky's occlusion while llvmpipe draws the colour pass
+            color, sky = built.colour_pass(r, seen, lambda: skylight(w, depth, inst, built.casters))
+        else:
+            color, sky = built.colour_pass(r, seen), None
+        t3 = time.perf_counter()
+        rgb = shade(w, color, depth, inst, built.casters, sky) if lit else color[..., :3]
         t4 = time.perf_counter()
         apply_look(rgb, depth, w.rig.intrinsics(), w.weather, w.light, w.sensor,
                    factor_rng(0, 0, "look"), HEADROOM if lit else 1.0, w.camera)

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import ctypes
 import os
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -48,10 +49,6 @@ class Draw:
     tris: np.ndarray
     pose: np.ndarray
     transparent: bool
-
-    def positions(self) -> np.ndarray:
-        """(3n, 3) float32 corners, as pyrender uploads a primitive's positions."""
-        return self.tris.reshape(-1, 3).astype(np.float32)
 
 
 def order(draws: list[Draw], camera: np.ndarray) -> list[int]:
@@ -157,15 +154,18 @@ def _read(target: _Target, width: int, height: int) -> tuple[np.ndarray, np.ndar
             _blit_depth(np.frombuffer(depth, np.uint32).reshape(height, width)[::-1] >> 8))
 
 
-def draw(draws: list[Draw], view: np.ndarray, projection: np.ndarray, width: int, height: int
-         ) -> tuple[np.ndarray, np.ndarray]:
+def draw(draws: list[Draw], view: np.ndarray, projection: np.ndarray, width: int, height: int,
+         meanwhile: Callable[[], None] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(H, W) uint32 triangle at each pixel (0 none, else 1 + its place in `draws`' triangles,
     taken in the order given) and (H, W) float32 window depth (1 where none), image rows top
-    down. `draws` in drawing order; view and projection matrices as pyrender's. The caller
-    makes the renderer's context current."""
+    down. `draws` in drawing order; view and projection matrices as pyrender's. `meanwhile`, if
+    given, runs while llvmpipe rasterizes. The caller makes the renderer's context current."""
     target = _target(width, height)
     first = np.cumsum([0, *(len(d.tris) for d in draws)])
-    _upload(target, np.concatenate([d.positions() for d in draws]) if draws else np.zeros((0, 3), np.float32))
+    positions = np.empty((3 * first[-1], 3), np.float32)  # as pyrender uploads each: float32
+    for d, start in zip(draws, first):
+        positions[3 * start:3 * (start + len(d.tris))] = d.tris.reshape(-1, 3)
+    _upload(target, positions)
     GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, target.framebuffer)
     _state(width, height)
     program = target.program
@@ -178,4 +178,7 @@ def draw(draws: list[Draw], view: np.ndarray, projection: np.ndarray, width: int
         GL.glDrawArrays(GL.GL_TRIANGLES, 3 * int(start), 3 * len(d.tris))
     program._unbind()
     GL.glBindVertexArray(0)
+    if meanwhile is not None:
+        GL.glFlush()
+        meanwhile()
     return _read(target, width, height)

@@ -23,6 +23,7 @@ slivers are kept.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numba
 import numpy as np
@@ -33,6 +34,9 @@ SAMPLES = np.array([[0.375, 0.875], [0.875, 0.625], [0.125, 0.375], [0.625, 0.12
 # A sample this far (px) inside a triangle's edge is on that side whatever llvmpipe's 1/256 px
 # vertex snapping and float32 transform do to the edge.
 COVER_PX = 0.01
+# A pixel centre this far inside all edges of a triangle has its four samples (within 0.4 px of it)
+# COVER_PX inside them.
+INNER_PX = COVER_PX + 0.4
 # A triangle may cover a sample of a pixel only where the pixel's centre lies within this distance
 # (px) of its box and of its three edge lines: the samples lie within 0.4 px of the centre.
 REACH_PX = 0.75
@@ -50,7 +54,6 @@ GUARD_PX = 4096.0
 MIN_ASPECT = 1e-4
 WALK = 6  # steps across shared edges from a triangle seen at a pixel centre towards a sample
 TILE = 8  # px: a triangle whose box lies over tiles all bounded nearer than it is hidden at once
-_PENDING = 1 << 16  # samples on shared edges a frame resolves at most (the rest count as uncovered)
 # A pixel and its eight neighbours, row and column offsets.
 _DR = np.array([0, -1, 1, 0, 0, -1, -1, 1, 1])
 _DC = np.array([0, 0, 0, -1, 1, -1, 1, -1, 1])
@@ -183,20 +186,27 @@ def _walk(edges, plane, slack, adj, ok, t, x, y, steps):
 
 
 @numba.njit(cache=True, nogil=True)
-def _certify(seen, edges, plane, slack, adj, ok, samples, out, pending):
+def _certify(seen, edges, plane, slack, adj, ok, samples, out):
     """out[r, c, s]: a bound of the depth of what covers sample s of the pixel, inf where no cover
-    is certain (or no triangle of the layers is seen at the pixel centre). Each sample's cover is
-    searched among the triangles seen at the pixel and its neighbours (each once), then by
-    walking from them across shared edges towards the sample. Samples on a shared edge are left
-    to `_across`: rows of `pending` (pixel, sample, 3 u + k); returns how many."""
+    is certain (or no triangle of the layers is seen at the pixel centre), or where the sample
+    lies on a shared edge `_walk`'s mark for `_across`. Each sample's cover is searched among
+    the triangles seen at the pixel and its neighbours (each once), then by walking from them
+    across shared edges towards the sample."""
     H, W = seen.shape
     starts = np.empty(9, np.int64)
-    m = 0
     for r in range(H):
         for c in range(W):
             out[r, c, :] = np.inf
             own = seen[r, c]
             if own < 0 or not ok[own]:
+                continue
+            xc, yc = c + 0.5, r + 0.5
+            if (edges[own, 0, 0] * xc + edges[own, 0, 1] * yc + edges[own, 0, 2] >= INNER_PX
+                    and edges[own, 1, 0] * xc + edges[own, 1, 1] * yc + edges[own, 1, 2] >= INNER_PX
+                    and edges[own, 2, 0] * xc + edges[own, 2, 1] * yc + edges[own, 2, 2] >= INNER_PX):
+                for s in range(samples.shape[0]):  # all four well inside the triangle seen
+                    out[r, c, s] = (plane[own, 0] * (c + samples[s, 0]) + plane[own, 1] * (r + samples[s, 1])
+                                    + plane[own, 2] + slack[own])
                 continue
             n = 0
             for s in range(samples.shape[0]):
@@ -223,49 +233,49 @@ def _certify(seen, edges, plane, slack, adj, ok, samples, out, pending):
                             if best < -1.0:
                                 mark = best if mark == 0.0 else mark
                                 best = np.inf
-                if best == np.inf and mark < 0.0 and m < pending.shape[0]:
-                    pending[m, 0], pending[m, 1], pending[m, 2] = r * W + c, s, int(-2.0 - mark)
-                    m += 1
-                out[r, c, s] = best
-    return m
+                out[r, c, s] = mark if best == np.inf and mark < 0.0 else best
 
 
 @numba.njit(cache=True, nogil=True)
-def _across(edges, plane, slack, centre, adj, ok, samples, pending, out):
-    """The samples `pending` left on shared edges: a sample within COVER_PX of edge k of triangle
-    t and inside its other two edges is covered by t or by the triangle across that edge, where
-    that one lies on the edge's other side and has the sample inside its own other two edges
-    (llvmpipe covers a point of an edge two triangles share by exactly one of them); the deeper
-    of the two bounds is the sample's, or inf."""
-    W = out.shape[1]
-    for i in range(pending.shape[0]):
-        p, s, tk = pending[i, 0], pending[i, 1], pending[i, 2]
-        r, c, t, k = p // W, p % W, tk // 3, tk % 3
-        x, y = c + samples[s, 0], r + samples[s, 1]
-        u = adj[t, k]
-        depth = np.inf
-        if u >= 0 and ok[u] and edges[t, k, 0] * centre[u, 0] + edges[t, k, 1] * centre[u, 1] + edges[t, k, 2] < -COVER_PX:
-            f0 = edges[u, 0, 0] * x + edges[u, 0, 1] * y + edges[u, 0, 2]
-            f1 = edges[u, 1, 0] * x + edges[u, 1, 1] * y + edges[u, 1, 2]
-            f2 = edges[u, 2, 0] * x + edges[u, 2, 1] * y + edges[u, 2, 2]
-            j, near = 0, abs(f0)  # u's edge along the shared one
-            if abs(f1) < near:
-                j, near = 1, abs(f1)
-            if abs(f2) < near:
-                j = 2
-            if (adj[u, j] == t and (j == 0 or f0 >= COVER_PX) and (j == 1 or f1 >= COVER_PX)
-                    and (j == 2 or f2 >= COVER_PX)):
-                depth = max(plane[t, 0] * x + plane[t, 1] * y + plane[t, 2] + slack[t],
-                            plane[u, 0] * x + plane[u, 1] * y + plane[u, 2] + slack[u])
-        out[r, c, s] = depth
+def _across(edges, plane, slack, centre, adj, ok, samples, out):
+    """The samples `_certify` left on shared edges (marked -2 - (3 t + k)): a sample within
+    COVER_PX of edge k of triangle t and inside its other two edges is covered by t or by the
+    triangle across that edge, where that one lies on the edge's other side and has the sample
+    inside its own other two edges (llvmpipe covers a point of an edge two triangles share by
+    exactly one of them); the deeper of the two bounds is the sample's, or inf."""
+    H, W, S = out.shape
+    for r in range(H):
+        for c in range(W):
+            for s in range(S):
+                if not out[r, c, s] < -1.0:
+                    continue
+                tk = int(-2.0 - out[r, c, s])
+                t, k = tk // 3, tk % 3
+                x, y = c + samples[s, 0], r + samples[s, 1]
+                u = adj[t, k]
+                depth = np.inf
+                if (u >= 0 and ok[u] and edges[t, k, 0] * centre[u, 0] + edges[t, k, 1] * centre[u, 1]
+                        + edges[t, k, 2] < -COVER_PX):
+                    f0 = edges[u, 0, 0] * x + edges[u, 0, 1] * y + edges[u, 0, 2]
+                    f1 = edges[u, 1, 0] * x + edges[u, 1, 1] * y + edges[u, 1, 2]
+                    f2 = edges[u, 2, 0] * x + edges[u, 2, 1] * y + edges[u, 2, 2]
+                    j, near = 0, abs(f0)  # u's edge along the shared one
+                    if abs(f1) < near:
+                        j, near = 1, abs(f1)
+                    if abs(f2) < near:
+                        j = 2
+                    if (adj[u, j] == t and (j == 0 or f0 >= COVER_PX) and (j == 1 or f1 >= COVER_PX)
+                            and (j == 2 or f2 >= COVER_PX)):
+                        depth = max(plane[t, 0] * x + plane[t, 1] * y + plane[t, 2] + slack[t],
+                                    plane[u, 0] * x + plane[u, 1] * y + plane[u, 2] + slack[u])
+                out[r, c, s] = depth
 
 
 @numba.njit(cache=True, nogil=True)
-def _row_max(bound, table, tiles):
-    """table[L, r, c]: the largest bound of the samples of pixels r, c to c + 2 ** L - 1 (as far
-    as the row goes), and tiles[i, j]: the largest over the TILE x TILE pixels from (i TILE,
-    j TILE), in float32 rounded up (never below the bounds)."""
-    H, W = bound.shape[:2]
+def _maxima(bound, pixels, tiles):
+    """The largest bound of each pixel's samples (pixels) and of each TILE x TILE square from
+    (0, 0) (tiles), in float32 rounded up: never below the bounds."""
+    H, W = pixels.shape
     tiles[:] = -np.inf
     for r in range(H):
         for c in range(W):
@@ -275,15 +285,8 @@ def _row_max(bound, table, tiles):
             v = np.float32(z)
             if v < z:
                 v = np.nextafter(v, np.float32(np.inf))
-            table[0, r, c] = v
+            pixels[r, c] = v
             tiles[r // TILE, c // TILE] = max(tiles[r // TILE, c // TILE], v)
-    for L in range(1, table.shape[0]):
-        h = 1 << (L - 1)
-        for r in range(H):
-            for c in range(W - h):
-                table[L, r, c] = max(table[L - 1, r, c], table[L - 1, r, c + h])
-            for c in range(max(0, W - h), W):
-                table[L, r, c] = table[L - 1, r, c]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -298,27 +301,6 @@ def _within(tiles, x, y, i, low):
         for tx in range(x0, x1 + 1):
             if not tiles[ty, tx] < low:
                 return False
-    return True
-
-
-@numba.njit(cache=True, nogil=True)
-def _rows_clear(table, edges, low, x, y, i):
-    """Whether every pixel where triangle i may draw (its box and edge lines, REACH_PX wider) has
-    all its samples bounded below the lowest depth the triangle may draw anywhere."""
-    levels, H, W = table.shape
-    top = max(0, int(math.floor(min(y[i, 0], min(y[i, 1], y[i, 2])) - REACH_PX - 0.5)))
-    bottom = min(H - 1, int(math.ceil(max(y[i, 0], max(y[i, 1], y[i, 2])) + REACH_PX)))
-    left = max(0.0, min(x[i, 0], min(x[i, 1], x[i, 2])) - REACH_PX)
-    right = min(float(W), max(x[i, 0], max(x[i, 1], x[i, 2])) + REACH_PX)
-    for r in range(top, bottom + 1):
-        a, b = _span(edges, i, r, left, right, W)
-        if a > b:
-            continue
-        L = 0
-        while (2 << L) <= b - a + 1:
-            L += 1
-        if not max(table[L, r, a], table[L, r, b - (1 << L) + 1]) < low[i]:
-            return False
     return True
 
 
@@ -342,7 +324,7 @@ def _span(edges, i, r, left, right, W):
 
 
 @numba.njit(cache=True, nogil=True)
-def _samples_clear(bound, table, edges, plane, low, local, samples, x, y, i):
+def _samples_clear(bound, pixels, edges, plane, low, local, samples, x, y, i):
     """Whether every sample triangle i may cover (within COVER_PX of all its edges) is bounded
     below the lowest depth the triangle may draw in that pixel: its plane at the pixel centre,
     less `local`, or its lowest anywhere."""
@@ -355,7 +337,7 @@ def _samples_clear(bound, table, edges, plane, low, local, samples, x, y, i):
         a, b = _span(edges, i, r, left, right, W)
         for c in range(a, b + 1):
             nearest = max(low[i], plane[i, 0] * (c + 0.5) + plane[i, 1] * (r + 0.5) + plane[i, 2] - local[i])
-            if table[0, r, c] < nearest:
+            if pixels[r, c] < nearest:
                 continue
             for s in range(samples.shape[0]):
                 xs, ys = c + samples[s, 0], r + samples[s, 1]
@@ -368,37 +350,54 @@ def _samples_clear(bound, table, edges, plane, low, local, samples, x, y, i):
 
 
 @numba.njit(cache=True, nogil=True)
-def _hidden(bound, table, tiles, edges, plane, low, local, ok, samples, x, y, out):
+def _hidden(bound, pixels, tiles, edges, plane, low, local, ok, samples, x, y, out):
     """out[i]: no sample triangle i may cover is left where it could win: tried on the tiles
-    under its box, then on the rows of pixels it may reach, then sample by sample."""
+    under its box, then pixel by pixel and sample by sample."""
     for i in range(edges.shape[0]):
-        out[i] = ok[i] and (_within(tiles, x, y, i, low[i]) or _rows_clear(table, edges, low, x, y, i)
-                            or _samples_clear(bound, table, edges, plane, low, local, samples, x, y, i))
+        out[i] = ok[i] and (_within(tiles, x, y, i, low[i])
+                            or _samples_clear(bound, pixels, edges, plane, low, local, samples, x, y, i))
 
 
-_TABLES: dict[tuple[int, int, int], tuple[np.ndarray, np.ndarray]] = {}
 
 
-def hidden(x: np.ndarray, y: np.ndarray, z: np.ndarray, front: np.ndarray, keys: np.ndarray,
-           seen: np.ndarray) -> np.ndarray:
-    """(n,) bool: which of the colour pass's triangles win no sample. x, y, z, front: their
-    corners on screen (`screen`); keys (n, 3): their shared vertices (equal keys, equal bits);
-    seen (H, W) int64: the triangle seen at each pixel centre, -1 where none of them."""
-    H, W = seen.shape
+
+@dataclass
+class Triangles:
+    """The colour pass's triangles as the culling reads them (`prepare`)."""
+
+    x: np.ndarray  # (n, 3) window x of the corners
+    y: np.ndarray  # (n, 3) image rows (down)
+    edges: np.ndarray  # (n, 3, 3) normalised edge functions, inside >= 0
+    plane: np.ndarray  # (n, 3) window depth = p x + q y + r
+    slack: np.ndarray  # (n,) depth slack as a covering triangle
+    low: np.ndarray  # (n,) lowest depth it may draw anywhere
+    local: np.ndarray  # (n,) how far below its plane at a pixel centre it may draw in that pixel
+    centre: np.ndarray  # (n, 2)
+    ok: np.ndarray  # (n,) bool: takes part
+    adj: np.ndarray  # (n, 3) the triangle across each edge
+
+
+def prepare(x: np.ndarray, y: np.ndarray, z: np.ndarray, front: np.ndarray, keys: np.ndarray,
+            width: int, height: int) -> Triangles:
+    """The colour pass's triangles: x, y, z, front their corners on screen (`screen`); keys (n, 3)
+    their shared vertices (equal keys, equal bits). What needs no image, made while the instance
+    pass draws."""
     n = len(x)
-    edges, plane, centre = np.zeros((n, 3, 3)), np.zeros((n, 3)), np.zeros((n, 2))
-    slack, low, local, ok = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n, bool)
-    _setup(x, y, z, front, W, H, edges, plane, slack, low, local, centre, ok)
-    bound, pending = np.empty((H, W, len(SAMPLES))), np.empty((_PENDING, 3), np.int64)
-    adj = adjacency(keys)
-    m = _certify(seen, edges, plane, slack, adj, ok, SAMPLES, bound, pending)
-    _across(edges, plane, slack, centre, adj, ok, SAMPLES, pending[:m], bound)
-    levels = max(1, int(W).bit_length())
-    if (levels, H, W) not in _TABLES:  # made once: 20 MB a frame to fill anew
-        _TABLES[levels, H, W] = (np.empty((levels, H, W), np.float32),
-                                 np.empty((-(-H // TILE), -(-W // TILE)), np.float32))
-    table, tiles = _TABLES[levels, H, W]
-    _row_max(bound, table, tiles)
-    out = np.empty(n, bool)
-    _hidden(bound, table, tiles, edges, plane, low, local, ok, SAMPLES, x, y, out)
+    t = Triangles(x, y, np.zeros((n, 3, 3)), np.zeros((n, 3)), np.zeros(n), np.zeros(n), np.zeros(n),
+                  np.zeros((n, 2)), np.zeros(n, bool), adjacency(keys))
+    _setup(x, y, z, front, width, height, t.edges, t.plane, t.slack, t.low, t.local, t.centre, t.ok)
+    return t
+
+
+def hidden(t: Triangles, seen: np.ndarray) -> np.ndarray:
+    """(n,) bool: which of the colour pass's triangles win no sample. seen (H, W) int64: the
+    triangle seen at each pixel centre, -1 where none of them."""
+    H, W = seen.shape
+    bound = np.empty((H, W, len(SAMPLES)))
+    _certify(seen, t.edges, t.plane, t.slack, t.adj, t.ok, SAMPLES, bound)
+    _across(t.edges, t.plane, t.slack, t.centre, t.adj, t.ok, SAMPLES, bound)
+    pixels, tiles = np.empty((H, W), np.float32), np.empty((-(-H // TILE), -(-W // TILE)), np.float32)
+    _maxima(bound, pixels, tiles)
+    out = np.empty(len(t.x), bool)
+    _hidden(bound, pixels, tiles, t.edges, t.plane, t.low, t.local, t.ok, SAMPLES, t.x, t.y, out)
     return out

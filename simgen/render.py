@@ -32,21 +32,22 @@ import os
 
 os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 
-from collections.abc import Iterable, MutableSet  # noqa: E402
-from dataclasses import dataclass, field  # noqa: E402
+from collections.abc import Callable, Iterable, MutableSet  # noqa: E402
+from dataclasses import dataclass  # noqa: E402
+from functools import cache  # noqa: E402
 
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 import pyrender  # noqa: E402
 from OpenGL import GL  # noqa: E402
-from pyrender.constants import RenderFlags  # noqa: E402
+from pyrender.constants import ProgramFlags, RenderFlags  # noqa: E402
 
 from . import facets, instance_pass, occlusion, textures  # noqa: E402
 from .camera import LUMA  # noqa: E402
 from .factors import factor_rng  # noqa: E402
 from .meshes import EMISSIVE  # noqa: E402
 from .shadows import Occluders, Reach, sky_occlusion, sun_shadow  # noqa: E402
-from .texture_layout import FACADE_KINDS, facade_uv, static_layout  # noqa: E402
+from .texture_layout import FACADE_KINDS, StaticLayout, Wearing, facade_uv, static_layout  # noqa: E402
 from .world import Part, World  # noqa: E402
 
 ZNEAR, ZFAR = 0.3, 400.0
@@ -197,9 +198,62 @@ class _Scene(pyrender.Scene):
 
 class _ColourRenderer(pyrender.Renderer):
     """pyrender's renderer for the colour pass alone (the instance pass gives the depth): it
-    resolves and reads the colour buffer as pyrender does, and leaves the depth buffer unread."""
+    resolves and reads the colour buffer as pyrender does, and leaves the depth buffer unread.
+    `meanwhile`, where set, runs after the draws are sent and before the read, while llvmpipe's
+    threads rasterize; its result is kept in `meanwhile_result`."""
+
+    meanwhile: Callable[[], object] | None = None
+    meanwhile_result: object = None
+
+    def _forward_pass(self, scene, flags, seg_node_map=None):
+        """pyrender's forward pass, for the flat looks with one program bound, the camera's
+        uniforms set and the state of pyrender's materials here (opaque, double-sided, filled)
+        once per program rather than once per primitive: the same draws, uniforms and state."""
+        if not flags & RenderFlags.FLAT or flags & RenderFlags.SEG:
+            return super()._forward_pass(scene, flags, seg_node_map)
+        self._configure_forward_pass_viewport(flags)
+        GL.glClearColor(*scene.bg_color)
+        GL.glClear(GL.GL_COLOR_BUFFER_BIT | GL.GL_DEPTH_BUFFER_BIT)
+        GL.glEnable(GL.GL_MULTISAMPLE)
+        GL.glEnable(GL.GL_BLEND)
+        GL.glBlendFunc(GL.GL_ONE, GL.GL_ZERO)
+        GL.glPolygonMode(GL.GL_FRONT_AND_BACK, GL.GL_FILL)
+        GL.glDisable(GL.GL_CULL_FACE)
+        GL.glDisable(GL.GL_PROGRAM_POINT_SIZE)
+        V, P = self._get_camera_matrices(scene)
+        program = None
+        for node in self._sorted_mesh_nodes(scene):
+            if not node.mesh.is_visible:
+                continue
+            pose = scene.get_pose(node)
+            for primitive in node.mesh.primitives:
+                material = primitive.material
+                if not material.doubleSided or material.alphaMode == "BLEND" or material.wireframe:
+                    raise ValueError("the flat colour pass draws opaque, double-sided, filled materials")
+                chosen = self._get_primitive_program(primitive, flags, ProgramFlags.USE_MATERIAL)
+                if chosen is not program:
+                    program = chosen
+                    program._bind()
+                    program.set_uniform("V", V)
+                    program.set_uniform("P", P)
+                program.set_uniform("M", pose)
+                primitive._bind()
+                if material.baseColorTexture is not None:
+                    GL.glActiveTexture(GL.GL_TEXTURE0)
+                    material.baseColorTexture._bind()
+                    program.set_uniform("material.base_color_texture", 0)
+                program.set_uniform("material.base_color_factor", material.baseColorFactor)
+                GL.glDrawArraysInstanced(primitive.mode, 0, len(primitive.positions), 1)
+        GL.glBindVertexArray(0)
+        if program is not None:
+            program._unbind()
+        GL.glFlush()
+        return self._read_main_framebuffer(scene, flags)
 
     def _read_main_framebuffer(self, scene, flags):
+        if self.meanwhile is not None:
+            GL.glFlush()
+            self.meanwhile_result = self.meanwhile()
         width, height = self._main_fb_dims
         GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._main_fb_ms)
         GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, self._main_fb)
@@ -304,19 +358,18 @@ class _Shader:
         `corner_normals` (F, 3, 3) the lit look shades each corner of each face with its own
         normal, (F, 3, 4), and the rasteriser blends them across the face. `glow` (P, 3): the
         linear radiance each part emits (lit look only; lit stop lamps)."""
-        counts = [len(p.mesh.faces) for p in parts]
         pick = (lambda a: a) if only is None else (lambda a: a[only])
+        owner = pick(np.repeat(np.arange(len(parts)), [len(p.mesh.faces) for p in parts]))  # each face's part
         if self.mode == "thermal":
-            rgb = pick(np.repeat(np.array([_thermal(p, moving) for p in parts]), counts, axis=0))
+            rgb = np.array([_thermal(p, moving) for p in parts])[owner]
             return np.c_[rgb, np.ones(len(rgb))]
-        albedo = np.repeat(np.array([p.material.color for p in parts], float), counts, axis=0)
+        albedo = np.array([p.material.color for p in parts], float)[owner]
         if albedo_gain is not None:
-            albedo = albedo * np.repeat(albedo_gain, counts, axis=0)
-        albedo = pick(albedo)
+            albedo = albedo * albedo_gain[owner]
         if self.mode == "pbr":
             return np.c_[albedo, np.ones(len(albedo))]
-        glossy = pick(np.repeat([p.material.name in GLOSSY for p in parts], counts))
-        emitted = None if glow is None else pick(np.repeat(glow, counts, axis=0))
+        glossy = np.array([p.material.name in GLOSSY for p in parts])[owner]
+        emitted = None if glow is None else glow[owner]
         tris, normals = pick(tris), pick(normals)
         if corner_normals is None:
             centres = (tris[:, 0] + tris[:, 1] + tris[:, 2]) / 3  # the mean over corners, in its order
@@ -331,13 +384,10 @@ class _Shader:
         """(N, 4) gamma-encoded RGB and the share of light that is not direct sun, of N surface
         points of the given albedo and normal, and (N, 3) emitted radiance if any: a shadow
         never dims what a point emits."""
-        cos = np.clip(normals @ self.sun, 0.0, 1.0)
-        sky = self.ambient * (0.7 + 0.3 * normals[:, 2])
-        lin, share = np.empty((len(cos), 3)), []
+        totals, share = self._skylight(normals)
+        lin = np.empty((len(normals), 3))
         for c in range(3):  # channel by channel: numpy's loops run over all points, not 3 channels
-            total = cos * self.sun_rgb[c] * _DIFFUSE + sky
-            lin[:, c] = albedo[:, c] * total
-            share.append(sky / np.maximum(total, 1e-9))
+            lin[:, c] = albedo[:, c] * totals[c]
         shiny = np.flatnonzero(glossy)
         if len(shiny):
             lin[shiny] += self._mirror(np.take(points, shiny, axis=0), np.take(normals, shiny, axis=0))
@@ -353,6 +403,25 @@ class _Shader:
         out[:, :3] = np.clip(lin / self.headroom, 0.0, 1.0) ** (1 / 2.2)
         out[:, 3] = np.clip(rest, 0.0, 1.0) ** (1 / 2.2)
         return out
+
+    def _skylight(self, normals: np.ndarray) -> tuple[list[np.ndarray], list[np.ndarray]]:
+        """Per channel, of N surface points of unit albedo: the light received (sun and sky) and
+        the share of it that is not direct sun."""
+        cos = np.clip(normals @ self.sun, 0.0, 1.0)
+        sky = self.ambient * (0.7 + 0.3 * normals[:, 2])
+        totals, share = [], []
+        for c in range(3):  # channel by channel: numpy's loops run over all points, not 3 channels
+            totals.append(cos * self.sun_rgb[c] * _DIFFUSE + sky)
+            share.append(sky / np.maximum(totals[c], 1e-9))
+        return totals, share
+
+    def alpha(self, normals: np.ndarray) -> np.ndarray:
+        """(N,) the alpha `colors` gives faces of these unit normals that emit nothing: in the lit
+        look the share of their light that is not direct sun, gamma-encoded; 1 in the others."""
+        if self.mode != "lit":
+            return np.ones(len(normals))
+        share = self._skylight(normals)[1]
+        return np.clip((share[0] + share[1] + share[2]) / 3, 0.0, 1.0) ** (1 / 2.2)
 
     def gl_normals(self, normals: np.ndarray) -> np.ndarray | None:
         """The normals pyrender needs: per-pixel lighting ('pbr') reads them, the flat shader of
@@ -386,28 +455,35 @@ def _thermal(part: Part, moving: bool) -> tuple[float, float, float]:
 
 @dataclass
 class _Layer:
-    """A node of the colour pass whose triangles it may leave out (simgen.occlusion): the node,
-    the primitives its mesh was made with, and the shared vertices of each one's triangles
-    (equal keys, equal bits)."""
+    """A node of the colour pass whose triangles it may leave out (simgen.occlusion): the node
+    (its mesh gets the primitives drawn), each primitive's triangles (node frame, float32 as
+    pyrender uploads them) and their shared vertices (equal keys, equal bits), and how to make
+    the primitives with some of their triangles (`keep`, a mask per primitive; none left out
+    where it is empty)."""
 
     node: pyrender.Node
+    corners: list[np.ndarray]
     keys: list[np.ndarray]
-    primitives: list[pyrender.Primitive] = field(init=False)
+    make: Callable[[list[np.ndarray]], list[pyrender.Primitive]]
 
-    def __post_init__(self):
-        self.primitives = list(self.node.mesh.primitives)
+    @staticmethod
+    def of(node: pyrender.Node, keys: list[np.ndarray]) -> _Layer:
+        """A layer of a node whose primitives are made in full: thinned by copying."""
+        primitives = list(node.mesh.primitives)
+        return _Layer(node, [p.positions.reshape(-1, 3, 3) for p in primitives], keys,
+                      lambda keep: _shown(primitives, keep))
 
     def triangles(self) -> int:
-        return sum(len(p.positions) // 3 for p in self.primitives)
+        return sum(len(c) for c in self.corners)
 
 
 class _Mesh(pyrender.Mesh):
     """A pyrender mesh that keeps its place in pyrender's draw order (transparent or not, as the
-    primitives it was made with say) whatever part of them the colour pass draws."""
+    primitives it is made with say, or as given) whatever part of them the colour pass draws."""
 
-    def __init__(self, primitives: list[pyrender.Primitive]):
+    def __init__(self, primitives: list[pyrender.Primitive], transparent: bool | None = None):
         super().__init__(primitives)
-        self._transparent = super().is_transparent
+        self._transparent = super().is_transparent if transparent is None else transparent
 
     @property
     def is_transparent(self) -> bool:
@@ -481,8 +557,8 @@ def _actor_meshes(bodies: list[tuple[list[Part], np.ndarray, bool]], shader: _Sh
     if rng is None:
         colours = dict(zip(visible, np.split(rgba, seen_ends)))
         own_faces = np.split(faces, ends)
-        layers = [_Layer(pyrender.Node(mesh=_Mesh([_primitive(t[s], shader.gl_normals(n[s]), colours[i][s], _PLAIN)]),
-                                       matrix=bodies[i][1]), [own_faces[i][s]])
+        layers = [_Layer.of(pyrender.Node(mesh=_Mesh([_primitive(t[s], shader.gl_normals(n[s]), colours[i][s],
+                                                                  _PLAIN)]), matrix=bodies[i][1]), [own_faces[i][s]])
                   for i, ((t, n), s) in enumerate(zip(geo, own_seen)) if s.any()]
         drawn_as = [None] * len(bodies)
         for k, i in enumerate(visible):
@@ -514,7 +590,7 @@ def _actor_meshes(bodies: list[tuple[list[Part], np.ndarray, bool]], shader: _Sh
         prims.append(_primitive(local[plain], None, rgba[plain], _PLAIN))
         keys.append(sel_faces[plain])
         order.append(np.flatnonzero(plain))
-    merged = _Layer(pyrender.Node(mesh=_Mesh(prims), translation=origin), keys)  # `visible`: a face at least
+    merged = _Layer.of(pyrender.Node(mesh=_Mesh(prims), translation=origin), keys)  # `visible`: a face at least
     at = np.full(len(seen), -1)
     at[np.concatenate(order)] = np.arange(len(seen[seen]))
     in_sel = np.cumsum(sel) - 1  # each face's place among the faces of `sel`
@@ -620,40 +696,82 @@ def _planar_uv(tris: np.ndarray, normals: np.ndarray, tile: tuple[float, float],
     return uv
 
 
+@dataclass
+class _Wear:
+    """One primitive of the static world's layer: the faces it draws (indices into the static
+    faces, in order) and, where they wear a tile, its texture layout and where they stand among
+    the faces of that layout (a façade is mapped from its whole wall)."""
+
+    faces: np.ndarray
+    wearing: Wearing | None = None
+    among: np.ndarray | None = None
+
+
+@dataclass
+class _Static:
+    """The static world's faces and what shades them, to make the colour pass's primitives of the
+    faces it draws alone: those it leaves out are neither shaded nor mapped."""
+
+    parts: list[Part]
+    tris: np.ndarray
+    normals: np.ndarray
+    first: np.ndarray  # each part's first face, and the end
+    layout: StaticLayout
+    shader: _Shader
+    wears: list[_Wear]
+
+    def make(self, keep: list[np.ndarray]) -> list[pyrender.Primitive]:
+        drawn = np.zeros(len(self.tris), bool)
+        for w, k in zip(self.wears, keep):
+            drawn[w.faces[k]] = True
+        rgba = np.zeros((len(self.tris), 4))  # shaded where drawn
+        rgba[drawn] = self.shader.colors(self.parts, self.tris, self.normals, False, self.layout.gain, only=drawn)
+        return [self._wear(w, k, rgba) for w, k in zip(self.wears, keep) if k.any()]
+
+    def _wear(self, w: _Wear, keep: np.ndarray, rgba: np.ndarray) -> pyrender.Primitive:
+        g = w.faces[keep]
+        if w.wearing is None:
+            return _primitive(self.tris[g], self.shader.gl_normals(self.normals[g]), rgba[g], _PLAIN)
+        worn = w.wearing
+        if worn.kind in FACADE_KINDS:  # from the whole wall, drawn or not
+            own = slice(self.first[worn.part], self.first[worn.part + 1])  # the part's faces
+            t, n = self.tris[own][worn.faces], self.normals[own][worn.faces]
+            uv = facade_uv(t, n, worn.tile, worn.shift)[w.among[keep]]
+        else:  # face by face
+            uv = _planar_uv(self.tris[g], self.normals[g], worn.tile, worn.shift)
+        colour = rgba[g] * np.array([textures.MAX_GAIN] * 3 + [1.0])
+        return _primitive(self.tris[g], None, colour, _textured(worn.kind, worn.variant), uv)  # lit: flat
+
+
 def _static_mesh(parts: list[Part], shader: _Shader, world: World, view: _View
                  ) -> tuple[_Layer | None, Occluders]:
-    """The static world's faces in `view`, one primitive per texture tile (and one for untextured
-    faces; None where no face is in view), and all its triangles as shadow casters."""
+    """The static world's faces in `view` as a layer, one primitive per texture tile (and one for
+    untextured faces; None where no face is in view), shaded when the colour pass draws them,
+    and all its triangles as shadow casters."""
     vertices, faces = facets.shared(parts)
     tris, normals = facets.faceted(vertices, faces)
     layout = static_layout(world, parts, normals)
     casters = Occluders.of_mesh(parts, vertices, faces)
     seen = view.faces(vertices, faces)
-    rgba = np.zeros((len(tris), 4))  # shaded where seen
-    rgba[seen] = shader.colors(parts, tris, normals, False, layout.gain, only=seen)
-    if shader.mode != "lit" or not world.appearance.textures:
-        prims = [_primitive(tris[seen], shader.gl_normals(normals[seen]), rgba[seen], _PLAIN)]
-        return (_Layer(pyrender.Node(mesh=_Mesh(prims)), [faces[seen]]) if seen.any() else None), casters
+    if not seen.any():
+        return None, casters
     first = np.cumsum([0] + [len(p.mesh.faces) for p in parts])
-    prims, keys, plain = [], [], seen.copy()
-    for w in layout.wearing:
-        own = slice(first[w.part], first[w.part + 1])  # the part's faces
-        plain[own] = False
-        shown = seen[own][w.faces]
-        if not shown.any():
-            continue
-        t, n = tris[own][w.faces], normals[own][w.faces]
-        if w.kind in FACADE_KINDS:  # from the whole wall, seen or not
-            uv = facade_uv(t, n, w.tile, w.shift)[shown]
-        else:  # face by face
-            uv = _planar_uv(t[shown], n[shown], w.tile, w.shift)
-        colour = rgba[own][w.faces][shown] * np.array([textures.MAX_GAIN] * 3 + [1.0])
-        prims.append(_primitive(t[shown], None, colour, _textured(w.kind, w.variant), uv))  # lit: flat
-        keys.append(faces[own][w.faces][shown])
+    wears, plain = [], seen.copy()
+    if shader.mode == "lit" and world.appearance.textures:
+        for w in layout.wearing:
+            own = slice(first[w.part], first[w.part + 1])  # the part's faces
+            plain[own] = False
+            shown = seen[own][w.faces]
+            if shown.any():
+                among = np.flatnonzero(shown)
+                wears.append(_Wear(first[w.part] + np.flatnonzero(w.faces)[among], w, among))
     if plain.any():
-        prims.append(_primitive(tris[plain], None, rgba[plain], _PLAIN))
-        keys.append(faces[plain])
-    return (_Layer(pyrender.Node(mesh=_Mesh(prims)), keys) if prims else None), casters
+        wears.append(_Wear(np.flatnonzero(plain)))
+    static = _Static(parts, tris, normals, first, layout, shader, wears)
+    transparent = bool(np.any(shader.alpha(normals[seen]).astype(np.float32) != 1.0))
+    node = pyrender.Node(mesh=_Mesh([], transparent))
+    corners = [tris[w.faces].astype(np.float32) for w in wears]
+    return _Layer(node, corners, [faces[w.faces] for w in wears], static.make), casters
 
 
 _DOME_RADIUS = 350.0  # m, inside ZFAR
@@ -676,10 +794,10 @@ def _sky_texture(rng: np.random.Generator, cover: float, headroom: float) -> np.
     return np.clip(np.round((sky / headroom) ** (1 / 2.2) * 255), 0, 255).astype(np.uint8)
 
 
-def _sky_dome(world: World, headroom: float, eye: np.ndarray) -> _Layer:
-    """A textured dome around the camera (at `eye`) for the lit looks (not in the instance pass:
-    its pixels keep depth 0 and instance 0)."""
-    rng = factor_rng(world.seed, world.frame_index, "sky")
+@cache
+def _dome() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The sky dome's triangles (about its centre), texture coordinates and faces (indexing its
+    grid's vertices), made once."""
     az = np.linspace(0, 2 * np.pi, 49)
     el = np.linspace(_DOME_LOW, np.pi / 2, 13)
     A, E = np.meshgrid(az, el)
@@ -688,12 +806,19 @@ def _sky_dome(world: World, headroom: float, eye: np.ndarray) -> _Layer:
     i, j = np.meshgrid(np.arange(12), np.arange(48), indexing="ij")
     quads = np.stack([i * 49 + j, i * 49 + j + 1, (i + 1) * 49 + j + 1, (i + 1) * 49 + j], -1).reshape(-1, 4)
     faces = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
-    tris, uv = P.reshape(-1, 3)[faces], UV.reshape(-1, 2)[faces]
+    return P.reshape(-1, 3)[faces], UV.reshape(-1, 2)[faces], faces
+
+
+def _sky_dome(world: World, headroom: float, eye: np.ndarray) -> _Layer:
+    """A textured dome around the camera (at `eye`) for the lit looks (not in the instance pass:
+    its pixels keep depth 0 and instance 0)."""
+    rng = factor_rng(world.seed, world.frame_index, "sky")
+    tris, uv, faces = _dome()
     tex = pyrender.Texture(source=_sky_texture(rng, world.appearance.cloud_cover, headroom),
                            source_channels="RGB")
     mat = pyrender.MetallicRoughnessMaterial(baseColorTexture=tex, metallicFactor=0.0, doubleSided=True)
     mesh = _Mesh([_primitive(tris, None, np.ones((len(tris), 4)), mat, uv)])  # lit looks: flat
-    return _Layer(pyrender.Node(mesh=mesh, matrix=np.r_[np.c_[np.eye(3), eye], [[0, 0, 0, 1]]]), [faces])
+    return _Layer.of(pyrender.Node(mesh=mesh, matrix=np.r_[np.c_[np.eye(3), eye], [[0, 0, 0, 1]]]), [faces])
 
 
 @dataclass
@@ -722,14 +847,15 @@ class Seen:
 class BuiltScene:
     """A world's pyrender scene at t = 0 (what the colour pass draws) with what its two passes
     need: the nodes of the instance pass, the colour pass's render flags, its layers (the nodes
-    whose hidden triangles it leaves out), and what darkens it (shadow casters, the actors'
-    reach)."""
+    whose hidden triangles it leaves out, and their triangles as the culling reads them), and
+    what darkens it (shadow casters, the actors' reach)."""
 
     scene: pyrender.Scene
     instances: list[_Instance]
     flags: int
     layers: list[_Layer]
     casters: Casters
+    triangles: occlusion.Triangles | None = None  # the layers' triangles, made by the instance pass
 
     def instance_pass(self, r: pyrender.OffscreenRenderer) -> Seen:
         """Actor ids, depth and triangles seen. Depth from this single-sample pass: the
@@ -741,50 +867,62 @@ class BuiltScene:
         todo = [self.instances[k] for k in order]
         r._platform.make_current()
         ids, z = instance_pass.draw([i.draw for i in todo], view, self._projection(r), r.viewport_width,
-                                    r.viewport_height)
+                                    r.viewport_height, lambda: self._prepare(r))
         r._platform.make_uncurrent()
         actor = np.concatenate([[0], *(np.full(len(i.draw.tris), i.actor) for i in todo)]).astype(np.uint16)
         triangle = np.concatenate([[-1], *(np.full(len(i.draw.tris), -1) if i.drawn_as is None
                                            else first[i.drawn_as[0]] + i.drawn_as[1] for i in todo)])
         return Seen(np.take(actor, ids), _metres(z, camera.camera), np.take(triangle.astype(np.int64), ids))
 
-    def colour_pass(self, r: pyrender.OffscreenRenderer, seen: Seen | None = None) -> np.ndarray:
+    def colour_pass(self, r: pyrender.OffscreenRenderer, seen: Seen | None = None,
+                    meanwhile: Callable[[], object] | None = None) -> np.ndarray | tuple[np.ndarray, object]:
         """The colour image (RGBA in the lit look: alpha is the light that is not direct sun);
-        with `seen`, the layers' hidden triangles left out."""
+        with `seen`, the layers' hidden triangles left out. With `meanwhile`, also its result:
+        it runs on the CPU while llvmpipe draws."""
+        if meanwhile is not None:
+            r._renderer.meanwhile = meanwhile
+            try:
+                return self.colour_pass(r, seen), r._renderer.meanwhile_result
+            finally:
+                r._renderer.meanwhile, r._renderer.meanwhile_result = None, None
         hidden = None if seen is None else self._hidden(r, seen.triangle)
         first = 0
         for layer in self.layers:
-            n = layer.triangles()
-            layer.node.mesh.primitives = (layer.primitives if hidden is None
-                                          else _shown(layer.primitives, ~hidden[first:first + n]))
-            first += n
+            keep = []
+            for c in layer.corners:
+                keep.append(np.ones(len(c), bool) if hidden is None else ~hidden[first:first + len(c)])
+                first += len(c)
+            layer.node.mesh.primitives = layer.make(keep)
         return r.render(self.scene, flags=self.flags)[0]
 
     def _projection(self, r: pyrender.OffscreenRenderer) -> np.ndarray:
         return self.scene.main_camera_node.camera.get_projection_matrix(r.viewport_width, r.viewport_height)
 
-    def _hidden(self, r: pyrender.OffscreenRenderer, triangle: np.ndarray) -> np.ndarray:
-        """(n,) bool over the layers' triangles: those that win no sample of the colour pass."""
+    def _prepare(self, r: pyrender.OffscreenRenderer) -> None:
+        """The layers' triangles as the culling reads them (occlusion.prepare): no image needed,
+        so made while llvmpipe draws the instance pass."""
         clip = self._projection(r) @ np.linalg.inv(self.scene.get_pose(self.scene.main_camera_node))
         corners, keys, base = [], [], 0
         for layer in self.layers:
-            at = clip @ self.scene.get_pose(layer.node)
-            corners += [occlusion.screen(p.positions.reshape(-1, 3, 3), at, r.viewport_width, r.viewport_height)
-                        for p in layer.primitives]
+            corners.append(occlusion.screen(np.concatenate(layer.corners), clip @ self.scene.get_pose(layer.node),
+                                            r.viewport_width, r.viewport_height))
             k = np.concatenate(layer.keys).astype(np.int64)
             keys.append(k + base)
             base += int(k.max()) + 1 if len(k) else 0
         x, y, z, front = (np.concatenate(c) for c in zip(*corners))
-        return occlusion.hidden(x, y, z, front, np.concatenate(keys), triangle)
+        self.triangles = occlusion.prepare(x, y, z, front, np.concatenate(keys), r.viewport_width, r.viewport_height)
+
+    def _hidden(self, r: pyrender.OffscreenRenderer, triangle: np.ndarray) -> np.ndarray:
+        """(n,) bool over the layers' triangles: those that win no sample of the colour pass."""
+        if self.triangles is None:
+            self._prepare(r)
+        return occlusion.hidden(self.triangles, triangle)
 
 
-def _shown(primitives: list[pyrender.Primitive], keep: np.ndarray) -> list[pyrender.Primitive]:
-    """The primitives with only the triangles `keep` (over all of theirs, in order) left."""
-    out, first = [], 0
-    for p in primitives:
-        n = len(p.positions) // 3
-        k = keep[first:first + n]
-        first += n
+def _shown(primitives: list[pyrender.Primitive], keep: list[np.ndarray]) -> list[pyrender.Primitive]:
+    """The primitives with only their triangles `keep` (a mask per primitive) left."""
+    out = []
+    for p, k in zip(primitives, keep):
         if k.all():
             out.append(p)
         elif k.any():
@@ -830,7 +968,7 @@ def build_scene(world: World) -> BuiltScene:
     if world.static:
         static, casters = _static_mesh(world.static, shader, world, view)
         if static is not None:
-            instances.append(_Instance(_draw_of(static.node), 0, (len(layers), np.arange(static.triangles()))))
+            instances.append(_Instance(_draw_of(static), 0, (len(layers), np.arange(static.triangles()))))
             layers.append(static)
     if shader.mode == "lit":
         layers.append(_sky_dome(world, shader.headroom, eye))
@@ -848,7 +986,7 @@ def build_scene(world: World) -> BuiltScene:
         _stop_lamp_glow(world.actors, bodies) if shader.mode == "lit" else None)
     for actor, tris, drawn_as in zip(world.actors, actors.own, actors.drawn_as):
         if tris is not None:
-            own = actors.layers[drawn_as[0]].node if not textured else None  # its layer is its node
+            own = actors.layers[drawn_as[0]] if not textured else None  # its layer is its node
             draw = (_draw_of(own) if own is not None
                     else instance_pass.Draw(tris, pyrender.Node(matrix=actor.pose).matrix, False))
             instances.append(_Instance(draw, actor.id, (len(layers) + drawn_as[0], drawn_as[1])))
@@ -859,7 +997,8 @@ def build_scene(world: World) -> BuiltScene:
         mat = pyrender.MetallicRoughnessMaterial(baseColorFactor=(0.0, 0.0, 0.0, 1.0),
                                                  emissiveFactor=EMISSIVE[part.material.name],
                                                  doubleSided=True)
-        instances.append(_Instance(_draw_of(scene.add(_lamp_mesh(part, mat), pose=pose)), actor_id, None))
+        lamp = scene.add(_lamp_mesh(part, mat), pose=pose)
+        instances.append(_Instance(_draw_of(_Layer.of(lamp, [])), actor_id, None))
     pose, residual = camera_node_pose(cam2_from_world)
     scene.add(_ExactCamera(rig.intrinsics(), residual), pose=pose)
     if shader.mode == "pbr":
@@ -881,10 +1020,9 @@ def build_scene(world: World) -> BuiltScene:
     return BuiltScene(scene, instances, flags, layers, Casters(casters, actors.casters, actors.reach))
 
 
-def _draw_of(node: pyrender.Node) -> instance_pass.Draw:
+def _draw_of(layer: _Layer) -> instance_pass.Draw:
     """The instance pass's draw of a colour pass node: all its triangles, in primitive order."""
-    tris = np.concatenate([p.positions for p in node.mesh.primitives]).reshape(-1, 3, 3)
-    return instance_pass.Draw(tris, node.matrix, node.mesh.is_transparent)
+    return instance_pass.Draw(np.concatenate(layer.corners), layer.node.matrix, layer.node.mesh.is_transparent)
 
 
 def _shade_tint(time: str) -> np.ndarray:
@@ -897,17 +1035,29 @@ def _shade_tint(time: str) -> np.ndarray:
 _LINEAR = ((np.arange(256) / 255.0) ** 2.2).astype(np.float32)  # gamma-encoded 8-bit value -> linear
 
 
+def skylight(world: World, depth: np.ndarray, instance: np.ndarray, casters: Casters) -> np.ndarray | None:
+    """The share of the sky the actors hide from the ground (sky_occlusion), where the look has
+    shadows (None elsewhere): from the instance pass alone, so it can run while the colour pass
+    draws."""
+    if not world.appearance.shadows:
+        return None
+    rig = world.rig
+    return sky_occlusion(casters.actors, casters.reach, depth, instance == 0, rig.intrinsics(), rig.cam2_from_world())
+
+
 def shade(world: World, color: np.ndarray, depth: np.ndarray, instance: np.ndarray,
-          casters: Casters) -> np.ndarray:
+          casters: Casters, sky: np.ndarray | None = None) -> np.ndarray:
     """The lit colour pass (RGBA, alpha = the light left in shadow) with the sun's shadows and the
-    actors' occlusion of the sky on the ground (instance 0) applied, as (H, W, 3) uint8."""
+    actors' occlusion of the sky on the ground (instance 0; `skylight`'s, made here where not
+    given) applied, as (H, W, 3) uint8."""
     rgb = color[..., :3]
     if not world.appearance.shadows:
         return rgb
     rig = world.rig
     K, cam2_from_world = rig.intrinsics(), rig.cam2_from_world()
     sun = sun_shadow(casters.every(), depth, K, cam2_from_world, _to_sun(world.light), color[..., 3] < 250)
-    sky = sky_occlusion(casters.actors, casters.reach, depth, instance == 0, K, cam2_from_world)
+    if sky is None:
+        sky = skylight(world, depth, instance, casters)
     # Only darkened pixels change (elsewhere the factor is exactly 1).
     out = cv2.cvtColor(color, cv2.COLOR_RGBA2RGB)  # a copy of rgb, faster than numpy's 3 bytes at a time
     hit = np.flatnonzero((sun != 0) | (sky != 0))
@@ -933,8 +1083,11 @@ def render(world: World) -> RenderOutput:
     r = renderer(rig.width, rig.height)
     built = build_scene(world)
     seen = built.instance_pass(r)
-    color = built.colour_pass(r, seen)
     lit = bool(built.flags & RenderFlags.RGBA)
-    rgb = shade(world, color, seen.depth, seen.instance, built.casters) if lit else color[..., :3]
+    if lit:
+        color, sky = built.colour_pass(r, seen, lambda: skylight(world, seen.depth, seen.instance, built.casters))
+        rgb = shade(world, color, seen.depth, seen.instance, built.casters, sky)
+    else:
+        rgb = built.colour_pass(r, seen)[..., :3]
     return RenderOutput(np.ascontiguousarray(rgb), seen.depth.astype(np.float32), seen.instance,
                         HEADROOM if lit else 1.0)

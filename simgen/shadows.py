@@ -143,7 +143,8 @@ def sun_shadow(occluders: Occluders, depth: np.ndarray, K: np.ndarray, cam2_from
     prim = occluders.scene().run(origins, dirs)
     small[need] = np.where(prim >= 0, occluders.depth[np.maximum(prim, 0)], 0.0)
     small = cv2.GaussianBlur(small, (0, 0), SOFTEN)
-    return cv2.resize(small, (W, H), interpolation=cv2.INTER_LINEAR) * (depth > 0)
+    full = cv2.resize(small, (W, H), interpolation=cv2.INTER_LINEAR)
+    return np.multiply(full, depth > 0, out=full)
 
 
 def sky_directions(n: int = SKY_RAYS) -> np.ndarray:

@@ -33,8 +33,8 @@ def _hidden(tris: np.ndarray, seen: np.ndarray) -> np.ndarray:
     quad = np.array([[0, 1, 2], [0, 2, 3]])
     if len(tris) >= 2:
         keys[:2] = quad  # the first two triangles: a quad of shared corners
-    return occlusion.hidden(tris[..., 0], tris[..., 1], tris[..., 2], np.ones((len(tris), 3), bool),
-                            keys, seen)
+    front = np.ones((len(tris), 3), bool)
+    return occlusion.hidden(occlusion.prepare(tris[..., 0], tris[..., 1], tris[..., 2], front, keys, W, H), seen)
 
 
 def _wall(depth: float) -> np.ndarray:
@@ -83,7 +83,7 @@ def test_a_triangle_off_the_image_is_hidden_one_across_the_near_plane_is_kept():
     front = np.ones((len(tris), 3), bool)
     front[2, 0] = False  # a corner behind the camera: its screen position means nothing
     keys = np.arange(3 * len(tris)).reshape(-1, 3)
-    assert not occlusion.hidden(x, y, z, front, keys, _seen_wall())[2]
+    assert not occlusion.hidden(occlusion.prepare(x, y, z, front, keys, W, H), _seen_wall())[2]
 
 
 def test_the_depth_blits_round_trip_by_hand():
@@ -120,7 +120,7 @@ def test_the_instance_pass_draws_as_pyrenders_segmentation_pass(spec, frame):
     seg = {}
     for i in built.instances:
         alpha = np.full((len(i.draw.tris) * 3, 4), 0.5 if i.draw.transparent else 1.0)
-        mesh = pyrender.Mesh([pyrender.Primitive(positions=i.draw.positions(), color_0=alpha)])
+        mesh = pyrender.Mesh([pyrender.Primitive(positions=i.draw.tris.reshape(-1, 3).astype(np.float32), color_0=alpha)])
         seg[scene.add(mesh, pose=i.draw.pose)] = (i.actor % 256, i.actor // 256, 0)
     scene.add_node(pyrender.Node(camera=built.scene.main_camera_node.camera,
                                  matrix=built.scene.get_pose(built.scene.main_camera_node)))
@@ -146,7 +146,7 @@ def test_culling_leaves_every_pixel_as_it_was(spec, frame, mode, monkeypatch):
     seen = built.instance_pass(r)
     hidden = built._hidden(r, seen.triangle)
     culled = R.render(world)
-    monkeypatch.setattr(occlusion, "hidden", lambda x, *args: np.zeros(len(x), bool))
+    monkeypatch.setattr(occlusion, "hidden", lambda t, seen: np.zeros(len(t.x), bool))
     whole = R.render(world)
     for a, b in ((culled.color, whole.color), (culled.depth, whole.depth), (culled.instance, whole.instance)):
         assert np.array_equal(a, b)
