@@ -275,6 +275,17 @@ def renderer(width: int, height: int) -> pyrender.OffscreenRenderer:
     return _RENDERERS[key]
 
 
+def software(r: pyrender.OffscreenRenderer) -> bool:
+    """Whether `r` draws on Mesa's llvmpipe. The occlusion culling's margins are llvmpipe's
+    (its float32 set-up and 24-bit depth): on another driver (a GPU's EGL) every triangle is drawn,
+    which a GPU does at little cost."""
+    if not hasattr(r, "_software"):
+        r._platform.make_current()
+        r._software = b"llvmpipe" in (GL.glGetString(GL.GL_RENDERER) or b"")
+        r._platform.make_uncurrent()
+    return r._software
+
+
 def camera_node_pose(cam2_from_world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(world-from-GL-camera rigid pose, GL residual) that together reproduce cam2_from_world."""
     U, _, Vt = np.linalg.svd(cam2_from_world[:3, :3])
@@ -1083,11 +1094,12 @@ def render(world: World) -> RenderOutput:
     r = renderer(rig.width, rig.height)
     built = build_scene(world)
     seen = built.instance_pass(r)
+    cull = seen if software(r) else None
     lit = bool(built.flags & RenderFlags.RGBA)
     if lit:
-        color, sky = built.colour_pass(r, seen, lambda: skylight(world, seen.depth, seen.instance, built.casters))
+        color, sky = built.colour_pass(r, cull, lambda: skylight(world, seen.depth, seen.instance, built.casters))
         rgb = shade(world, color, seen.depth, seen.instance, built.casters, sky)
     else:
-        rgb = built.colour_pass(r, seen)[..., :3]
+        rgb = built.colour_pass(r, cull)[..., :3]
     return RenderOutput(np.ascontiguousarray(rgb), seen.depth.astype(np.float32), seen.instance,
                         HEADROOM if lit else 1.0)
