@@ -29,7 +29,7 @@ def golden(golden_run) -> dict:
 
 
 def test_golden_bounds(golden):
-    fit64, fit16 = golden["hdl64e-64b-native-max/fit-gt"], golden["hdl64e-16b-native-max/fit-gt"]
+    fit64, fit16 = golden["hdl64e-64b-native-max/fit-gt"], golden["uniform-16b-native-max/fit-gt"]
     mono = golden["no-lidar/mono-gt"]
     # oracle boxes, 64 beams, noise as in the sensor: the fitted boxes overlap the truth
     assert fit64["3d_loose_r40"][1] >= 60.0
