@@ -28,6 +28,7 @@ shifted by half a pixel to match.
 
 from __future__ import annotations
 
+import ctypes
 import os
 
 os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
@@ -204,6 +205,61 @@ class _ColourRenderer(pyrender.Renderer):
 
     meanwhile: Callable[[], object] | None = None
     meanwhile_result: object = None
+    _identity: int | None = None  # one buffer of the identity instance matrix, for every primitive
+
+    def _update_context(self, scene, flags):
+        """pyrender's upload of the scene's meshes and textures, each primitive's vertices
+        interleaved by one copy into one buffer (pyrender's layout) and the identity instance
+        matrix shared; the process's texture tiles (_textured) stay on the GPU when a frame
+        does not use them."""
+        meshes = scene.meshes
+        for mesh in meshes - self._meshes:
+            for p in mesh.primitives:
+                self._upload(p)
+        for mesh in self._meshes - meshes:
+            for p in mesh.primitives:
+                p.delete()
+        self._meshes = meshes.copy()
+        used = {t for m in meshes for p in m.primitives for t in p.material.textures}
+        for texture in used - self._mesh_textures:
+            if texture._texid is None:
+                texture._add_to_context()
+        for texture in self._mesh_textures - used:
+            if texture not in _TILES:
+                texture.delete()
+        self._mesh_textures = used | (self._mesh_textures & _TILES)
+
+    def _upload(self, p: pyrender.Primitive) -> None:
+        if p.normals is not None or p.tangents is not None or p.texcoord_1 is not None or p.poses is not None:
+            p._add_to_context()
+            return
+        columns = [a for a in (p.positions, p.texcoord_0, p.color_0) if a is not None]
+        data = np.empty((len(p.positions), sum(a.shape[1] for a in columns)), np.float32)
+        first = 0
+        for a in columns:
+            data[:, first:first + a.shape[1]] = a
+            first += a.shape[1]
+        p._vaid = GL.glGenVertexArrays(1)
+        GL.glBindVertexArray(p._vaid)
+        p._buffers = [GL.glGenBuffers(1)]
+        GL.glBindBuffer(GL.GL_ARRAY_BUFFER, p._buffers[0])
+        GL.glBufferData(GL.GL_ARRAY_BUFFER, data.nbytes, data, GL.GL_STATIC_DRAW)
+        offset = 0
+        for i, a in enumerate(columns):
+            GL.glVertexAttribPointer(i, a.shape[1], GL.GL_FLOAT, GL.GL_FALSE, data.strides[0],
+                                     ctypes.c_void_p(4 * offset))
+            GL.glEnableVertexAttribArray(i)
+            offset += a.shape[1]
+        if self._identity is None:
+            self._identity = GL.glGenBuffers(1)
+            GL.glBindBuffer(GL.GL_ARRAY_BUFFER, self._identity)
+            GL.glBufferData(GL.GL_ARRAY_BUFFER, 64, np.eye(4, dtype=np.float32), GL.GL_STATIC_DRAW)
+        GL.glBindBuffer(GL.GL_ARRAY_BUFFER, self._identity)
+        for i in range(4):
+            GL.glEnableVertexAttribArray(len(columns) + i)
+            GL.glVertexAttribPointer(len(columns) + i, 4, GL.GL_FLOAT, GL.GL_FALSE, 64, ctypes.c_void_p(16 * i))
+            GL.glVertexAttribDivisor(len(columns) + i, 1)
+        GL.glBindVertexArray(0)
 
     def _forward_pass(self, scene, flags, seg_node_map=None):
         """pyrender's forward pass, for the flat looks with one program bound, the camera's
@@ -290,6 +346,7 @@ _PLAIN = pyrender.MetallicRoughnessMaterial(baseColorFactor=(1.0, 1.0, 1.0, 1.0)
 # pyrender's diffuse term for a white base: (1 - F) c_diff / pi with F ~ 0.04, c_diff = 0.96.
 _DIFFUSE = 0.96 * 0.96 / np.pi
 _TEXTURED: dict[tuple[int, str, int], pyrender.MetallicRoughnessMaterial] = {}
+_TILES: set[pyrender.Texture] = set()  # their textures
 
 
 def _textured(kind: str, variant: int) -> pyrender.MetallicRoughnessMaterial:
@@ -298,6 +355,7 @@ def _textured(kind: str, variant: int) -> pyrender.MetallicRoughnessMaterial:
     key = (os.getpid(), kind, variant)
     if key not in _TEXTURED:
         tex = pyrender.Texture(source=textures.tile(kind, variant), source_channels="RGB")
+        _TILES.add(tex)
         _TEXTURED[key] = pyrender.MetallicRoughnessMaterial(baseColorTexture=tex, metallicFactor=0.0,
                                                             roughnessFactor=0.9, doubleSided=True)
     return _TEXTURED[key]
