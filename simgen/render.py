@@ -826,10 +826,16 @@ def _static_mesh(parts: list[Part], shader: _Shader, world: World, view: _View
     if plain.any():
         wears.append(_Wear(np.flatnonzero(plain)))
     static = _Static(parts, tris, normals, first, layout, shader, wears)
-    transparent = bool(np.any(shader.alpha(normals[seen]).astype(np.float32) != 1.0))
-    node = pyrender.Node(mesh=_Mesh([], transparent))
+    node = pyrender.Node(mesh=_Mesh([], _translucent(shader, normals[seen])))
     corners = [tris[w.faces].astype(np.float32) for w in wears]
     return _Layer(node, corners, [faces[w.faces] for w in wears], static.make), casters
+
+
+def _translucent(shader: _Shader, normals: np.ndarray) -> bool:
+    """Whether faces of these unit normals get an alpha below 1 somewhere (in float32, what
+    pyrender tests: it draws such a mesh after the opaque ones), tried on the first faces first:
+    in the lit look any face towards the sun has one."""
+    return any(np.any(shader.alpha(part).astype(np.float32) != 1.0) for part in (normals[:256], normals[256:]))
 
 
 _DOME_RADIUS = 350.0  # m, inside ZFAR
