@@ -38,6 +38,7 @@ from dataclasses import dataclass  # noqa: E402
 from functools import cache  # noqa: E402
 
 import cv2  # noqa: E402
+import numba  # noqa: E402
 import numpy as np  # noqa: E402
 import pyrender  # noqa: E402
 from OpenGL import GL  # noqa: E402
@@ -1136,10 +1137,22 @@ def darken(rgb: np.ndarray, alpha: np.ndarray, sun: np.ndarray, sky: np.ndarray,
     """(N, 3) uint8 gamma-encoded colours with the light that shadow and sky occlusion take
     away. In linear light, per channel: a share r of the light is the sky's (alpha, gamma-encoded,
     times the linear `tint`, skylight being bluer than the sun); occlusion `sky` cuts that share,
-    shadow depth `sun` the rest."""
-    r = np.take(np.minimum(_LINEAR[:, None] * tint, np.float32(1.0)), alpha, axis=0)  # per 8-bit alpha
-    left = (1.0 - sun[:, None]) * (1.0 - r) + (1.0 - sky[:, None]) * r
-    return np.clip(np.round(rgb * np.power(left, np.float32(1 / 2.2))), 0, 255).astype(np.uint8)
+    shadow depth `sun` the rest. All in float32 (sun, sky and tint are), as numpy's operators
+    would take them one after another, pixel by pixel."""
+    out = np.empty((len(rgb), 3), np.uint8)
+    _darken(rgb, alpha, sun, sky, np.minimum(_LINEAR[:, None] * tint, np.float32(1.0)), out)  # r per 8-bit alpha
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _darken(rgb, alpha, sun, sky, share, out):
+    one, gamma = np.float32(1.0), np.float32(1 / 2.2)
+    for i in range(rgb.shape[0]):
+        for c in range(3):
+            r = share[alpha[i], c]
+            left = (one - sun[i]) * (one - r) + (one - sky[i]) * r
+            v = np.round(np.float32(rgb[i, c]) * left ** gamma)
+            out[i, c] = np.uint8(min(max(v, np.float32(0.0)), np.float32(255.0)))
 
 
 def render(world: World) -> RenderOutput:
