@@ -516,21 +516,22 @@ def _thermal(part: Part, moving: bool) -> tuple[float, float, float]:
 class _Layer:
     """A node of the colour pass whose triangles it may leave out (simgen.occlusion): the node
     (its mesh gets the primitives drawn), each primitive's triangles (node frame, float32 as
-    pyrender uploads them) and their shared vertices (equal keys, equal bits), and how to make
-    the primitives with some of their triangles (`keep`, a mask per primitive; none left out
-    where it is empty)."""
+    pyrender uploads them) and their corners as indices into the layer's shared vertices (equal
+    keys, equal bits), and how to make the primitives with some of their triangles (`keep`, a
+    mask per primitive; none left out where it is empty)."""
 
     node: pyrender.Node
     corners: list[np.ndarray]
     keys: list[np.ndarray]
     make: Callable[[list[np.ndarray]], list[pyrender.Primitive]]
+    vertices: np.ndarray  # (V, 3) float32, node frame: corners == vertices[keys]
 
     @staticmethod
-    def of(node: pyrender.Node, keys: list[np.ndarray]) -> _Layer:
+    def of(node: pyrender.Node, keys: list[np.ndarray], vertices: np.ndarray) -> _Layer:
         """A layer of a node whose primitives are made in full: thinned by copying."""
         primitives = list(node.mesh.primitives)
         return _Layer(node, [p.positions.reshape(-1, 3, 3) for p in primitives], keys,
-                      lambda keep: _shown(primitives, keep))
+                      lambda keep: _shown(primitives, keep), vertices)
 
     def triangles(self) -> int:
         return sum(len(c) for c in self.corners)
@@ -616,8 +617,10 @@ def _actor_meshes(bodies: list[tuple[list[Part], np.ndarray, bool]], shader: _Sh
     if rng is None:
         colours = dict(zip(visible, np.split(rgba, seen_ends)))
         own_faces = np.split(faces, ends)
+        own_v = np.split(vertices.astype(np.float32), v_starts[1:])
         layers = [_Layer.of(pyrender.Node(mesh=_Mesh([_primitive(t[s], shader.gl_normals(n[s]), colours[i][s],
-                                                                  _PLAIN)]), matrix=bodies[i][1]), [own_faces[i][s]])
+                                                                  _PLAIN)]), matrix=bodies[i][1]),
+                            [own_faces[i][s] - v_starts[i]], own_v[i])
                   for i, ((t, n), s) in enumerate(zip(geo, own_seen)) if s.any()]
         drawn_as = [None] * len(bodies)
         for k, i in enumerate(visible):
@@ -649,7 +652,8 @@ def _actor_meshes(bodies: list[tuple[list[Part], np.ndarray, bool]], shader: _Sh
         prims.append(_primitive(local[plain], None, rgba[plain], _PLAIN))
         keys.append(sel_faces[plain])
         order.append(np.flatnonzero(plain))
-    merged = _Layer.of(pyrender.Node(mesh=_Mesh(prims), translation=origin), keys)  # `visible`: a face at least
+    merged = _Layer.of(pyrender.Node(mesh=_Mesh(prims), translation=origin), keys,  # `visible`: a face at least
+                       (world_v - origin).astype(np.float32))
     at = np.full(len(seen), -1)
     at[np.concatenate(order)] = np.arange(len(seen[seen]))
     in_sel = np.cumsum(sel) - 1  # each face's place among the faces of `sel`
@@ -829,7 +833,7 @@ def _static_mesh(parts: list[Part], shader: _Shader, world: World, view: _View
     static = _Static(parts, tris, normals, first, layout, shader, wears)
     node = pyrender.Node(mesh=_Mesh([], _translucent(shader, normals[seen])))
     corners = [tris[w.faces].astype(np.float32) for w in wears]
-    return _Layer(node, corners, [faces[w.faces] for w in wears], static.make), casters
+    return _Layer(node, corners, [faces[w.faces] for w in wears], static.make, vertices.astype(np.float32)), casters
 
 
 def _translucent(shader: _Shader, normals: np.ndarray) -> bool:
@@ -860,9 +864,9 @@ def _sky_texture(rng: np.random.Generator, cover: float, headroom: float) -> np.
 
 
 @cache
-def _dome() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The sky dome's triangles (about its centre), texture coordinates and faces (indexing its
-    grid's vertices), made once."""
+def _dome() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The sky dome's triangles (about its centre), texture coordinates, faces and the grid's
+    vertices they index, made once."""
     az = np.linspace(0, 2 * np.pi, 49)
     el = np.linspace(_DOME_LOW, np.pi / 2, 13)
     A, E = np.meshgrid(az, el)
@@ -871,19 +875,20 @@ def _dome() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     i, j = np.meshgrid(np.arange(12), np.arange(48), indexing="ij")
     quads = np.stack([i * 49 + j, i * 49 + j + 1, (i + 1) * 49 + j + 1, (i + 1) * 49 + j], -1).reshape(-1, 4)
     faces = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
-    return P.reshape(-1, 3)[faces], UV.reshape(-1, 2)[faces], faces
+    return P.reshape(-1, 3)[faces], UV.reshape(-1, 2)[faces], faces, P.reshape(-1, 3)
 
 
 def _sky_dome(world: World, headroom: float, eye: np.ndarray) -> _Layer:
     """A textured dome around the camera (at `eye`) for the lit looks (not in the instance pass:
     its pixels keep depth 0 and instance 0)."""
     rng = factor_rng(world.seed, world.frame_index, "sky")
-    tris, uv, faces = _dome()
+    tris, uv, faces, grid = _dome()
     tex = pyrender.Texture(source=_sky_texture(rng, world.appearance.cloud_cover, headroom),
                            source_channels="RGB")
     mat = pyrender.MetallicRoughnessMaterial(baseColorTexture=tex, metallicFactor=0.0, doubleSided=True)
     mesh = _Mesh([_primitive(tris, None, np.ones((len(tris), 4)), mat, uv)])  # lit looks: flat
-    return _Layer.of(pyrender.Node(mesh=mesh, matrix=np.r_[np.c_[np.eye(3), eye], [[0, 0, 0, 1]]]), [faces])
+    return _Layer.of(pyrender.Node(mesh=mesh, matrix=np.r_[np.c_[np.eye(3), eye], [[0, 0, 0, 1]]]), [faces],
+                     grid.astype(np.float32))
 
 
 @dataclass
@@ -967,15 +972,15 @@ class BuiltScene:
         """The layers' triangles as the culling reads them (occlusion.prepare): no image needed,
         so made while llvmpipe draws the instance pass."""
         clip = self._projection(r) @ np.linalg.inv(self.scene.get_pose(self.scene.main_camera_node))
-        corners, keys, base = [], [], 0
+        points, keys, base = [], [], 0
         for layer in self.layers:
-            corners.append(occlusion.screen(np.concatenate(layer.corners), clip @ self.scene.get_pose(layer.node),
-                                            r.viewport_width, r.viewport_height))
-            k = np.concatenate(layer.keys).astype(np.int64)
-            keys.append(k + base)
-            base += int(k.max()) + 1 if len(k) else 0
-        x, y, z, front = (np.concatenate(c) for c in zip(*corners))
-        self.triangles = occlusion.prepare(x, y, z, front, np.concatenate(keys), r.viewport_width, r.viewport_height)
+            points.append(occlusion.screen(layer.vertices, clip @ self.scene.get_pose(layer.node),
+                                           r.viewport_width, r.viewport_height))
+            keys.append(np.concatenate(layer.keys).astype(np.int64) + base)
+            base += len(layer.vertices)
+        keys = np.concatenate(keys)
+        x, y, z, front = (np.take(np.concatenate(p), keys) for p in zip(*points))
+        self.triangles = occlusion.prepare(x, y, z, front, keys, r.viewport_width, r.viewport_height)
 
     def _hidden(self, r: pyrender.OffscreenRenderer, triangle: np.ndarray) -> np.ndarray:
         """(n,) bool over the layers' triangles: those that win no sample of the colour pass."""
@@ -1063,7 +1068,7 @@ def build_scene(world: World) -> BuiltScene:
                                                  emissiveFactor=EMISSIVE[part.material.name],
                                                  doubleSided=True)
         lamp = scene.add(_lamp_mesh(part, mat), pose=pose)
-        instances.append(_Instance(_draw_of(_Layer.of(lamp, [])), actor_id, None))
+        instances.append(_Instance(_draw_of(_Layer.of(lamp, [], np.zeros((0, 3), np.float32))), actor_id, None))
     pose, residual = camera_node_pose(cam2_from_world)
     scene.add(_ExactCamera(rig.intrinsics(), residual), pose=pose)
     if shader.mode == "pbr":
