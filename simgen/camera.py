@@ -110,11 +110,18 @@ def _luminance(lin: np.ndarray) -> np.ndarray:
 def _vignetting(H: int, W: int, K: np.ndarray, corner: float) -> np.ndarray:
     """(H, W) relative illumination: cos^4 of the field angle, rescaled to `corner` at the
     farthest corner."""
-    u = (np.arange(W) - K[0, 2]) / K[0, 0]
-    v = (np.arange(H) - K[1, 2]) / K[1, 1]
+    fall, most = _falloff(H, W, float(K[0, 0]), float(K[1, 1]), float(K[0, 2]), float(K[1, 2]))
+    return 1.0 - fall * (1.0 - corner) / most
+
+
+@lru_cache(maxsize=4)
+def _falloff(H: int, W: int, fx: float, fy: float, cx: float, cy: float) -> tuple[np.ndarray, float]:
+    """1 - cos^4 of each pixel's field angle, and its largest value (at least 1e-9): what the
+    vignetting scales, the same for every frame of a camera."""
+    u = (np.arange(W) - cx) / fx
+    v = (np.arange(H) - cy) / fy
     cos4 = 1.0 / (1.0 + u[None, :] ** 2 + v[:, None] ** 2) ** 2
-    c4_min = float(cos4.min())
-    return 1.0 - (1.0 - cos4) * (1.0 - corner) / max(1.0 - c4_min, 1e-9)
+    return 1.0 - cos4, max(1.0 - float(cos4.min()), 1e-9)
 
 
 def expose(lin: np.ndarray, K: np.ndarray, cam: CameraResponse, rng: np.random.Generator,
@@ -131,7 +138,7 @@ def expose(lin: np.ndarray, K: np.ndarray, cam: CameraResponse, rng: np.random.G
     wb = np.exp(rng.normal(0.0, cam.white_balance_sd, 3) * np.array([1.0, 0.0, 1.0]))
     img = lin * (gain * wb)
     if cam.corner_illumination < 1.0:
-        img = img * _vignetting(H, W, K, cam.corner_illumination)[..., None]
+        np.multiply(img, _vignetting(H, W, K, cam.corner_illumination)[..., None], out=img)
     if cam.blur_sigma_px > 0:
         img = cv2.GaussianBlur(img.astype(np.float32), (0, 0), cam.blur_sigma_px)
     if cam.bayer:
@@ -266,7 +273,11 @@ def _noisy(signal: np.ndarray, cam: CameraResponse, rng: np.random.Generator) ->
     """Shot and read noise of a linear signal in [0, 1] (1 = full well), clipped to [0, 1]."""
     if cam.full_well_e <= 0:
         return signal
-    e = signal * cam.full_well_e
-    sd = np.sqrt(e + cam.read_noise_e ** 2) / cam.full_well_e
-    noise = rng.standard_normal(signal.shape, dtype=np.float32) * sd
-    return np.clip(signal + noise, 0.0, 1.0).astype(np.float32)
+    sd = signal * cam.full_well_e  # electrons, then the noise's sd on the signal's scale (in place)
+    sd += cam.read_noise_e ** 2
+    np.sqrt(sd, out=sd)
+    sd /= cam.full_well_e
+    noisy = rng.standard_normal(signal.shape, dtype=np.float32)
+    noisy *= sd
+    noisy += signal
+    return np.clip(noisy, 0.0, 1.0, out=noisy)

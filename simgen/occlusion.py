@@ -59,11 +59,11 @@ _DR = np.array([0, -1, 1, 0, 0, -1, -1, 1, 1])
 _DC = np.array([0, 0, 0, -1, 1, -1, 1, -1, 1])
 
 
-def screen(corners: np.ndarray, clip_from_frame: np.ndarray, width: int, height: int
+def screen(points: np.ndarray, clip_from_frame: np.ndarray, width: int, height: int
            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Window x, y (image rows, down) and depth of (n, 3, 3) float32 corners in one frame, and
-    whether each corner lies in front of the camera, as (n, 3) arrays."""
-    v = corners.reshape(-1, 3).astype(np.float64)
+    """Window x, y (image rows, down) and depth of (..., 3) float32 points in one frame, and
+    whether each lies in front of the camera, each shaped as the points less their last axis."""
+    v = points.reshape(-1, 3).astype(np.float64)
     clip = v @ clip_from_frame[:3, :3].T + clip_from_frame[:3, 3]
     w = v @ clip_from_frame[3, :3] + clip_from_frame[3, 3]
     front = w > 0
@@ -71,7 +71,8 @@ def screen(corners: np.ndarray, clip_from_frame: np.ndarray, width: int, height:
     x = (clip[:, 0] * inv + 1.0) * (width / 2)
     y = height - (clip[:, 1] * inv + 1.0) * (height / 2)
     z = (clip[:, 2] * inv + 1.0) / 2
-    return (x.reshape(-1, 3), y.reshape(-1, 3), z.reshape(-1, 3), front.reshape(-1, 3))
+    shape = points.shape[:-1]
+    return x.reshape(shape), y.reshape(shape), z.reshape(shape), front.reshape(shape)
 
 
 def adjacency(keys: np.ndarray) -> np.ndarray:

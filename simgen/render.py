@@ -28,6 +28,7 @@ shifted by half a pixel to match.
 
 from __future__ import annotations
 
+import ctypes
 import os
 
 os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
@@ -37,6 +38,7 @@ from dataclasses import dataclass  # noqa: E402
 from functools import cache  # noqa: E402
 
 import cv2  # noqa: E402
+import numba  # noqa: E402
 import numpy as np  # noqa: E402
 import pyrender  # noqa: E402
 from OpenGL import GL  # noqa: E402
@@ -204,6 +206,61 @@ class _ColourRenderer(pyrender.Renderer):
 
     meanwhile: Callable[[], object] | None = None
     meanwhile_result: object = None
+    _identity: int | None = None  # one buffer of the identity instance matrix, for every primitive
+
+    def _update_context(self, scene, flags):
+        """pyrender's upload of the scene's meshes and textures, each primitive's vertices
+        interleaved by one copy into one buffer (pyrender's layout) and the identity instance
+        matrix shared; the process's texture tiles (_textured) stay on the GPU when a frame
+        does not use them."""
+        meshes = scene.meshes
+        for mesh in meshes - self._meshes:
+            for p in mesh.primitives:
+                self._upload(p)
+        for mesh in self._meshes - meshes:
+            for p in mesh.primitives:
+                p.delete()
+        self._meshes = meshes.copy()
+        used = {t for m in meshes for p in m.primitives for t in p.material.textures}
+        for texture in used - self._mesh_textures:
+            if texture._texid is None:
+                texture._add_to_context()
+        for texture in self._mesh_textures - used:
+            if texture not in _TILES:
+                texture.delete()
+        self._mesh_textures = used | (self._mesh_textures & _TILES)
+
+    def _upload(self, p: pyrender.Primitive) -> None:
+        if p.normals is not None or p.tangents is not None or p.texcoord_1 is not None or p.poses is not None:
+            p._add_to_context()
+            return
+        columns = [a for a in (p.positions, p.texcoord_0, p.color_0) if a is not None]
+        data = np.empty((len(p.positions), sum(a.shape[1] for a in columns)), np.float32)
+        first = 0
+        for a in columns:
+            data[:, first:first + a.shape[1]] = a
+            first += a.shape[1]
+        p._vaid = GL.glGenVertexArrays(1)
+        GL.glBindVertexArray(p._vaid)
+        p._buffers = [GL.glGenBuffers(1)]
+        GL.glBindBuffer(GL.GL_ARRAY_BUFFER, p._buffers[0])
+        GL.glBufferData(GL.GL_ARRAY_BUFFER, data.nbytes, data, GL.GL_STATIC_DRAW)
+        offset = 0
+        for i, a in enumerate(columns):
+            GL.glVertexAttribPointer(i, a.shape[1], GL.GL_FLOAT, GL.GL_FALSE, data.strides[0],
+                                     ctypes.c_void_p(4 * offset))
+            GL.glEnableVertexAttribArray(i)
+            offset += a.shape[1]
+        if self._identity is None:
+            self._identity = GL.glGenBuffers(1)
+            GL.glBindBuffer(GL.GL_ARRAY_BUFFER, self._identity)
+            GL.glBufferData(GL.GL_ARRAY_BUFFER, 64, np.eye(4, dtype=np.float32), GL.GL_STATIC_DRAW)
+        GL.glBindBuffer(GL.GL_ARRAY_BUFFER, self._identity)
+        for i in range(4):
+            GL.glEnableVertexAttribArray(len(columns) + i)
+            GL.glVertexAttribPointer(len(columns) + i, 4, GL.GL_FLOAT, GL.GL_FALSE, 64, ctypes.c_void_p(16 * i))
+            GL.glVertexAttribDivisor(len(columns) + i, 1)
+        GL.glBindVertexArray(0)
 
     def _forward_pass(self, scene, flags, seg_node_map=None):
         """pyrender's forward pass, for the flat looks with one program bound, the camera's
@@ -301,6 +358,7 @@ _PLAIN = pyrender.MetallicRoughnessMaterial(baseColorFactor=(1.0, 1.0, 1.0, 1.0)
 # pyrender's diffuse term for a white base: (1 - F) c_diff / pi with F ~ 0.04, c_diff = 0.96.
 _DIFFUSE = 0.96 * 0.96 / np.pi
 _TEXTURED: dict[tuple[int, str, int], pyrender.MetallicRoughnessMaterial] = {}
+_TILES: set[pyrender.Texture] = set()  # their textures
 
 
 def _textured(kind: str, variant: int) -> pyrender.MetallicRoughnessMaterial:
@@ -309,6 +367,7 @@ def _textured(kind: str, variant: int) -> pyrender.MetallicRoughnessMaterial:
     key = (os.getpid(), kind, variant)
     if key not in _TEXTURED:
         tex = pyrender.Texture(source=textures.tile(kind, variant), source_channels="RGB")
+        _TILES.add(tex)
         _TEXTURED[key] = pyrender.MetallicRoughnessMaterial(baseColorTexture=tex, metallicFactor=0.0,
                                                             roughnessFactor=0.9, doubleSided=True)
     return _TEXTURED[key]
@@ -468,21 +527,22 @@ def _thermal(part: Part, moving: bool) -> tuple[float, float, float]:
 class _Layer:
     """A node of the colour pass whose triangles it may leave out (simgen.occlusion): the node
     (its mesh gets the primitives drawn), each primitive's triangles (node frame, float32 as
-    pyrender uploads them) and their shared vertices (equal keys, equal bits), and how to make
-    the primitives with some of their triangles (`keep`, a mask per primitive; none left out
-    where it is empty)."""
+    pyrender uploads them) and their corners as indices into the layer's shared vertices (equal
+    keys, equal bits), and how to make the primitives with some of their triangles (`keep`, a
+    mask per primitive; none left out where it is empty)."""
 
     node: pyrender.Node
     corners: list[np.ndarray]
     keys: list[np.ndarray]
     make: Callable[[list[np.ndarray]], list[pyrender.Primitive]]
+    vertices: np.ndarray  # (V, 3) float32, node frame: corners == vertices[keys]
 
     @staticmethod
-    def of(node: pyrender.Node, keys: list[np.ndarray]) -> _Layer:
+    def of(node: pyrender.Node, keys: list[np.ndarray], vertices: np.ndarray) -> _Layer:
         """A layer of a node whose primitives are made in full: thinned by copying."""
         primitives = list(node.mesh.primitives)
         return _Layer(node, [p.positions.reshape(-1, 3, 3) for p in primitives], keys,
-                      lambda keep: _shown(primitives, keep))
+                      lambda keep: _shown(primitives, keep), vertices)
 
     def triangles(self) -> int:
         return sum(len(c) for c in self.corners)
@@ -568,8 +628,10 @@ def _actor_meshes(bodies: list[tuple[list[Part], np.ndarray, bool]], shader: _Sh
     if rng is None:
         colours = dict(zip(visible, np.split(rgba, seen_ends)))
         own_faces = np.split(faces, ends)
+        own_v = np.split(vertices.astype(np.float32), v_starts[1:])
         layers = [_Layer.of(pyrender.Node(mesh=_Mesh([_primitive(t[s], shader.gl_normals(n[s]), colours[i][s],
-                                                                  _PLAIN)]), matrix=bodies[i][1]), [own_faces[i][s]])
+                                                                  _PLAIN)]), matrix=bodies[i][1]),
+                            [own_faces[i][s] - v_starts[i]], own_v[i])
                   for i, ((t, n), s) in enumerate(zip(geo, own_seen)) if s.any()]
         drawn_as = [None] * len(bodies)
         for k, i in enumerate(visible):
@@ -601,7 +663,8 @@ def _actor_meshes(bodies: list[tuple[list[Part], np.ndarray, bool]], shader: _Sh
         prims.append(_primitive(local[plain], None, rgba[plain], _PLAIN))
         keys.append(sel_faces[plain])
         order.append(np.flatnonzero(plain))
-    merged = _Layer.of(pyrender.Node(mesh=_Mesh(prims), translation=origin), keys)  # `visible`: a face at least
+    merged = _Layer.of(pyrender.Node(mesh=_Mesh(prims), translation=origin), keys,  # `visible`: a face at least
+                       (world_v - origin).astype(np.float32))
     at = np.full(len(seen), -1)
     at[np.concatenate(order)] = np.arange(len(seen[seen]))
     in_sel = np.cumsum(sel) - 1  # each face's place among the faces of `sel`
@@ -779,10 +842,16 @@ def _static_mesh(parts: list[Part], shader: _Shader, world: World, view: _View
     if plain.any():
         wears.append(_Wear(np.flatnonzero(plain)))
     static = _Static(parts, tris, normals, first, layout, shader, wears)
-    transparent = bool(np.any(shader.alpha(normals[seen]).astype(np.float32) != 1.0))
-    node = pyrender.Node(mesh=_Mesh([], transparent))
+    node = pyrender.Node(mesh=_Mesh([], _translucent(shader, normals[seen])))
     corners = [tris[w.faces].astype(np.float32) for w in wears]
-    return _Layer(node, corners, [faces[w.faces] for w in wears], static.make), casters
+    return _Layer(node, corners, [faces[w.faces] for w in wears], static.make, vertices.astype(np.float32)), casters
+
+
+def _translucent(shader: _Shader, normals: np.ndarray) -> bool:
+    """Whether faces of these unit normals get an alpha below 1 somewhere (in float32, what
+    pyrender tests: it draws such a mesh after the opaque ones), tried on the first faces first:
+    in the lit look any face towards the sun has one."""
+    return any(np.any(shader.alpha(part).astype(np.float32) != 1.0) for part in (normals[:256], normals[256:]))
 
 
 _DOME_RADIUS = 350.0  # m, inside ZFAR
@@ -806,9 +875,9 @@ def _sky_texture(rng: np.random.Generator, cover: float, headroom: float) -> np.
 
 
 @cache
-def _dome() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The sky dome's triangles (about its centre), texture coordinates and faces (indexing its
-    grid's vertices), made once."""
+def _dome() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The sky dome's triangles (about its centre), texture coordinates, faces and the grid's
+    vertices they index, made once."""
     az = np.linspace(0, 2 * np.pi, 49)
     el = np.linspace(_DOME_LOW, np.pi / 2, 13)
     A, E = np.meshgrid(az, el)
@@ -817,19 +886,20 @@ def _dome() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     i, j = np.meshgrid(np.arange(12), np.arange(48), indexing="ij")
     quads = np.stack([i * 49 + j, i * 49 + j + 1, (i + 1) * 49 + j + 1, (i + 1) * 49 + j], -1).reshape(-1, 4)
     faces = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
-    return P.reshape(-1, 3)[faces], UV.reshape(-1, 2)[faces], faces
+    return P.reshape(-1, 3)[faces], UV.reshape(-1, 2)[faces], faces, P.reshape(-1, 3)
 
 
 def _sky_dome(world: World, headroom: float, eye: np.ndarray) -> _Layer:
     """A textured dome around the camera (at `eye`) for the lit looks (not in the instance pass:
     its pixels keep depth 0 and instance 0)."""
     rng = factor_rng(world.seed, world.frame_index, "sky")
-    tris, uv, faces = _dome()
+    tris, uv, faces, grid = _dome()
     tex = pyrender.Texture(source=_sky_texture(rng, world.appearance.cloud_cover, headroom),
                            source_channels="RGB")
     mat = pyrender.MetallicRoughnessMaterial(baseColorTexture=tex, metallicFactor=0.0, doubleSided=True)
     mesh = _Mesh([_primitive(tris, None, np.ones((len(tris), 4)), mat, uv)])  # lit looks: flat
-    return _Layer.of(pyrender.Node(mesh=mesh, matrix=np.r_[np.c_[np.eye(3), eye], [[0, 0, 0, 1]]]), [faces])
+    return _Layer.of(pyrender.Node(mesh=mesh, matrix=np.r_[np.c_[np.eye(3), eye], [[0, 0, 0, 1]]]), [faces],
+                     grid.astype(np.float32))
 
 
 @dataclass
@@ -913,15 +983,15 @@ class BuiltScene:
         """The layers' triangles as the culling reads them (occlusion.prepare): no image needed,
         so made while llvmpipe draws the instance pass."""
         clip = self._projection(r) @ np.linalg.inv(self.scene.get_pose(self.scene.main_camera_node))
-        corners, keys, base = [], [], 0
+        points, keys, base = [], [], 0
         for layer in self.layers:
-            corners.append(occlusion.screen(np.concatenate(layer.corners), clip @ self.scene.get_pose(layer.node),
-                                            r.viewport_width, r.viewport_height))
-            k = np.concatenate(layer.keys).astype(np.int64)
-            keys.append(k + base)
-            base += int(k.max()) + 1 if len(k) else 0
-        x, y, z, front = (np.concatenate(c) for c in zip(*corners))
-        self.triangles = occlusion.prepare(x, y, z, front, np.concatenate(keys), r.viewport_width, r.viewport_height)
+            points.append(occlusion.screen(layer.vertices, clip @ self.scene.get_pose(layer.node),
+                                           r.viewport_width, r.viewport_height))
+            keys.append(np.concatenate(layer.keys).astype(np.int64) + base)
+            base += len(layer.vertices)
+        keys = np.concatenate(keys)
+        x, y, z, front = (np.take(np.concatenate(p), keys) for p in zip(*points))
+        self.triangles = occlusion.prepare(x, y, z, front, keys, r.viewport_width, r.viewport_height)
 
     def _hidden(self, r: pyrender.OffscreenRenderer, triangle: np.ndarray) -> np.ndarray:
         """(n,) bool over the layers' triangles: those that win no sample of the colour pass."""
@@ -1009,7 +1079,7 @@ def build_scene(world: World) -> BuiltScene:
                                                  emissiveFactor=EMISSIVE[part.material.name],
                                                  doubleSided=True)
         lamp = scene.add(_lamp_mesh(part, mat), pose=pose)
-        instances.append(_Instance(_draw_of(_Layer.of(lamp, [])), actor_id, None))
+        instances.append(_Instance(_draw_of(_Layer.of(lamp, [], np.zeros((0, 3), np.float32))), actor_id, None))
     pose, residual = camera_node_pose(cam2_from_world)
     scene.add(_ExactCamera(rig.intrinsics(), residual), pose=pose)
     if shader.mode == "pbr":
@@ -1083,10 +1153,22 @@ def darken(rgb: np.ndarray, alpha: np.ndarray, sun: np.ndarray, sky: np.ndarray,
     """(N, 3) uint8 gamma-encoded colours with the light that shadow and sky occlusion take
     away. In linear light, per channel: a share r of the light is the sky's (alpha, gamma-encoded,
     times the linear `tint`, skylight being bluer than the sun); occlusion `sky` cuts that share,
-    shadow depth `sun` the rest."""
-    r = np.take(np.minimum(_LINEAR[:, None] * tint, np.float32(1.0)), alpha, axis=0)  # per 8-bit alpha
-    left = (1.0 - sun[:, None]) * (1.0 - r) + (1.0 - sky[:, None]) * r
-    return np.clip(np.round(rgb * np.power(left, np.float32(1 / 2.2))), 0, 255).astype(np.uint8)
+    shadow depth `sun` the rest. All in float32 (sun, sky and tint are), as numpy's operators
+    would take them one after another, pixel by pixel."""
+    out = np.empty((len(rgb), 3), np.uint8)
+    _darken(rgb, alpha, sun, sky, np.minimum(_LINEAR[:, None] * tint, np.float32(1.0)), out)  # r per 8-bit alpha
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _darken(rgb, alpha, sun, sky, share, out):
+    one, gamma = np.float32(1.0), np.float32(1 / 2.2)
+    for i in range(rgb.shape[0]):
+        for c in range(3):
+            r = share[alpha[i], c]
+            left = (one - sun[i]) * (one - r) + (one - sky[i]) * r
+            v = np.round(np.float32(rgb[i, c]) * left ** gamma)
+            out[i, c] = np.uint8(min(max(v, np.float32(0.0)), np.float32(255.0)))
 
 
 def render(world: World) -> RenderOutput:

@@ -127,6 +127,24 @@ def test_darken_by_hand():
     assert list(expected) == [107.0, 0.0, 188.0, 200.0]
 
 
+def test_darken_is_numpys_float32_arithmetic_pixel_by_pixel():
+    """The compiled loop against numpy's operators one after another (the arithmetic the frames'
+    bytes were first made with) on a million random pixels, shadow and occlusion at every depth."""
+    from simgen.render import _LINEAR, darken
+
+    rng = np.random.default_rng(0)
+    n = 1_000_000
+    rgb = rng.integers(0, 256, (n, 3)).astype(np.uint8)
+    alpha = rng.integers(0, 256, n)
+    sun = (rng.random(n) * (rng.random(n) < 0.7)).astype(np.float32)
+    sky = (rng.random(n) * (rng.random(n) < 0.5)).astype(np.float32)
+    tint = np.array([0.8, 0.95, 1.3], np.float32)
+    r = np.take(np.minimum(_LINEAR[:, None] * tint, np.float32(1.0)), alpha, axis=0)
+    left = (1.0 - sun[:, None]) * (1.0 - r) + (1.0 - sky[:, None]) * r
+    want = np.clip(np.round(rgb * np.power(left, np.float32(1 / 2.2))), 0, 255).astype(np.uint8)
+    assert np.array_equal(darken(rgb, alpha, sun, sky, tint), want)
+
+
 def test_along_keeps_what_a_ray_may_meet():
     """Occluders.along by hand: rays from two points straight up (and a slanted sun) can meet
     only what stands in their prism, above the lower point; with and without shared vertices."""
