@@ -968,10 +968,10 @@ class BuiltScene:
         ids, z = instance_pass.draw([i.draw for i in todo], view, self._projection(r), r.viewport_width,
                                     r.viewport_height, lambda: self._meanwhile(r))
         r._platform.make_uncurrent()
-        actor = np.concatenate([[0], *(np.full(len(i.draw.tris), i.actor) for i in todo)]).astype(np.uint16)
+        actor = np.concatenate([[0], *(np.full(len(i.draw.tris), i.actor) for i in todo)])
         triangle = np.concatenate([[-1], *(np.full(len(i.draw.tris), -1) if i.drawn_as is None
                                            else first[i.drawn_as[0]] + i.drawn_as[1] for i in todo)])
-        return Seen(np.take(actor, ids), _metres(z, camera.camera), np.take(triangle.astype(np.int64), ids))
+        return Seen(*instance_pass.resolve(ids, z, actor, triangle, camera.camera.znear, camera.camera.zfar))
 
     def colour_pass(self, r: pyrender.OffscreenRenderer, seen: Seen | None = None,
                     meanwhile: Callable[[], object] | None = None) -> np.ndarray | tuple[np.ndarray, object]:
@@ -1037,14 +1037,6 @@ def _shown(primitives: list[pyrender.Primitive], keep: list[np.ndarray]) -> list
                 positions=p.positions[corner], normals=None if p.normals is None else p.normals[corner],
                 color_0=None if p.color_0 is None else p.color_0[corner],
                 texcoord_0=None if p.texcoord_0 is None else p.texcoord_0[corner], material=p.material))
-    return out
-
-
-def _metres(z: np.ndarray, camera: pyrender.Camera) -> np.ndarray:
-    """Camera z (metres) of window depths, 0 where none (1): pyrender's arithmetic, in float32."""
-    d = 2.0 * z - 1.0
-    out = (2.0 * camera.znear * camera.zfar) / (camera.zfar + camera.znear - d * (camera.zfar - camera.znear))
-    out[z == 1.0] = 0.0
     return out
 
 

@@ -88,14 +88,25 @@ def test_a_triangle_off_the_image_is_hidden_one_across_the_near_plane_is_kept():
     assert not occlusion.hidden(occlusion.prepare(x, y, z, front, keys, W, H), _seen_wall())[2]
 
 
-def test_the_depth_blits_round_trip_by_hand():
+def test_depths_as_pyrenders_blit_and_read_by_hand():
     """A 24-bit depth through float32 and back (times 1 / (2^24 - 1), then 2^24 - 1, rounded):
     some move up one step (8388607, 16777214: float32 rounds the product above them), others and
-    the largest depth stay; read, each is divided by 2^24 - 1."""
-    z24 = np.array([0, 2, 8388607, 8388608, 16777214, 16777215], np.uint32)
-    got = instance_pass._blit_depth(z24)
+    the largest depth stay; read, each is divided by 2^24 - 1 and made camera z as pyrender does
+    (0 where nothing is drawn); against numpy's float32 operators on a million more depths."""
+    near, far = 0.3, 400.0
+    z24 = np.r_[[0, 2, 8388607, 8388608, 16777214, 16777215],
+                np.random.default_rng(0).integers(0, 1 << 24, 1_000_000)].astype(np.uint32)[None]
     moved = np.array([0, 2, 8388608, 8388608, 16777215, 16777215])
-    assert np.array_equal(got, (moved / 16777215.0).astype(np.float32))
+    f32 = np.float32
+    back = np.round(z24.astype(f32) * f32(1.0 / 16777215) * f32(16777215))
+    assert np.array_equal(back[0, :6], moved)
+    z = (np.minimum(back, 16777215) / 16777215.0).astype(f32)
+    want = (2.0 * near * far) / (far + near - (2.0 * z - 1.0) * (far - near))
+    want[z == 1.0] = 0.0
+    actor, triangle = np.array([0, 7]), np.array([-1, 3])
+    inst, depth, seen = instance_pass.resolve(np.ones_like(z24), z24, actor, triangle, near, far)
+    assert np.array_equal(depth.view(np.uint32), want.view(np.uint32)) and depth[0, 5] == 0.0
+    assert (inst == 7).all() and (seen == 3).all()
 
 
 _PLAIN: dict[tuple[int, int], pyrender.OffscreenRenderer] = {}
