@@ -24,6 +24,7 @@ import tempfile
 import time
 from pathlib import Path
 
+import kitti  # noqa: F401  (first: it pins the kernels and OpenBLAS's threads before numpy loads)
 import numpy as np
 from pyrender.constants import RenderFlags
 

@@ -7,9 +7,9 @@ triangle instead: that names the actor (simgen.render's instance map) and the tr
 colour pass's culling starts from (simgen.occlusion). All draws share one vertex buffer.
 
 pyrender drew into 4x multisampled buffers with multisampling off and resolved them by blits,
-whose depth blit moves a depth by a float32 round trip (`_blit_depth`). This pass draws into
-single-sample buffers, a quarter of the writes and no blits, and makes the same round trip on
-the depth it reads.
+whose depth blit moves a depth by a float32 round trip. This pass draws into single-sample
+buffers, a quarter of the writes and no blits, and makes the same round trip on the depth it
+reads (`resolve`).
 """
 
 from __future__ import annotations
@@ -20,6 +20,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+import numba
 import numpy as np
 import pyrender
 from OpenGL import GL
@@ -137,13 +138,29 @@ def _state(width: int, height: int) -> None:
     GL.glClear(GL.GL_DEPTH_BUFFER_BIT)
 
 
-def _blit_depth(z24: np.ndarray) -> np.ndarray:
-    """Window depths as read after llvmpipe's depth blit from 24-bit depths `z24`: the blit takes
-    a depth to float32 (times 1 / (2^24 - 1)) and back (times 2^24 - 1, rounded to even), in
-    float32, which moves some up by one step; the read divides by 2^24 - 1."""
-    f32 = np.float32
-    back = np.round(z24.astype(f32) * f32(1.0 / _Z24) * f32(_Z24))
-    return (np.minimum(back, _Z24) / float(_Z24)).astype(f32)
+def resolve(ids: np.ndarray, z24: np.ndarray, actor: np.ndarray, triangle: np.ndarray, near: float,
+            far: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per pixel of `draw`'s image (triangle numbers `ids`, 24-bit depths `z24`): the actor id and
+    the triangle named by `actor` and `triangle` (indexed by the numbers: 0 for none), and the
+    depth in metres as pyrender's segmentation pass gave it (0 where nothing is drawn): its depth
+    blit took a depth to float32 (times 1 / (2^24 - 1)) and back (times 2^24 - 1, rounded to
+    even), which moves some up by one step, its read divided by 2^24 - 1, and it made window
+    depths camera z with the camera's near and far planes, all in float32."""
+    H, W = ids.shape
+    out = (np.empty((H, W), np.uint16), np.empty((H, W), np.float32), np.empty((H, W), np.int64))
+    _resolve(ids, z24, actor.astype(np.uint16), triangle.astype(np.int64), near, far, *out)
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _resolve(ids, z24, actor, triangle, near, far, instance, depth, seen):
+    f1, f2 = np.float32(1.0 / _Z24), np.float32(_Z24)
+    c1, c2, c3 = np.float32(far - near), np.float32(far + near), np.float32(2.0 * near * far)
+    for r in range(ids.shape[0]):
+        for c in range(ids.shape[1]):
+            instance[r, c], seen[r, c] = actor[ids[r, c]], triangle[ids[r, c]]
+            z = np.float32(np.float64(min(np.round(np.float32(z24[r, c]) * f1 * f2), f2)) / _Z24)
+            depth[r, c] = 0.0 if z == np.float32(1.0) else c3 / (c2 - (np.float32(2.0) * z - np.float32(1.0)) * c1)
 
 
 def _read(target: _Target, width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
@@ -151,14 +168,14 @@ def _read(target: _Target, width: int, height: int) -> tuple[np.ndarray, np.ndar
     ids = GL.glReadPixels(0, 0, width, height, GL.GL_RED_INTEGER, GL.GL_UNSIGNED_INT)
     depth = GL.glReadPixels(0, 0, width, height, GL.GL_DEPTH_COMPONENT, GL.GL_UNSIGNED_INT)  # 24 bits, high
     return (np.frombuffer(ids, np.uint32).reshape(height, width)[::-1],
-            _blit_depth(np.frombuffer(depth, np.uint32).reshape(height, width)[::-1] >> 8))
+            np.frombuffer(depth, np.uint32).reshape(height, width)[::-1] >> 8)
 
 
 def draw(draws: list[Draw], view: np.ndarray, projection: np.ndarray, width: int, height: int,
          meanwhile: Callable[[], None] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(H, W) uint32 triangle at each pixel (0 none, else 1 + its place in `draws`' triangles,
-    taken in the order given) and (H, W) float32 window depth (1 where none), image rows top
-    down. `draws` in drawing order; view and projection matrices as pyrender's. `meanwhile`, if
+    taken in the order given) and (H, W) 24-bit depth (2^24 - 1 where none), image rows top
+    down (`resolve` reads them). `draws` in drawing order; view and projection matrices as pyrender's. `meanwhile`, if
     given, runs while llvmpipe rasterizes. The caller makes the renderer's context current."""
     target = _target(width, height)
     first = np.cumsum([0, *(len(d.tris) for d in draws)])

@@ -2,22 +2,23 @@
 pass, so that the colour pass leaves them out and draws the same bytes.
 
 llvmpipe spends the colour pass (4x multisampled, simgen.render) per triangle and per 4x4 block
-it touches, hidden or not, and most triangles in view lie behind others (on urban.yaml four in
-five: trees behind houses, yards behind walls, the far side of every crown). A triangle that wins
-no sample changes no byte, and leaving out triangles that win none changes no winner: at every
-sample the nearest triangle (the first drawn among equally near ones) stays.
+it touches, hidden or not, and most triangles in view lie behind others (on urban.yaml about nine
+in ten: trees behind houses, yards behind walls, the far side of every crown). A triangle that
+wins no sample changes no byte, and leaving out triangles that win none changes no winner: at
+every sample the nearest triangle (the first drawn among equally near ones) stays.
 
 The instance pass names the triangle seen at each pixel centre. From the geometry of those
-triangles, as the colour pass draws them, every pixel gets a bound of how deep its four samples'
-surfaces lie at most (`certify`): a sample counts as covered by a triangle only where it lies
-inside all three of its edges by COVER_PX, or, within COVER_PX of an edge that two triangles share
-(the same vertices: llvmpipe covers such a sample by exactly one of them), inside the other
-edges of both. The triangle containing a sample need not be the one seen at a centre: it is
-found by walking across shared edges from the triangles seen at the pixel and its eight
-neighbours. A triangle is hidden (`hidden`) where every pixel whose samples it may reach has such
-a bound, nearer than its own nearest corner by margins that hold llvmpipe's float32 transform,
-its fixed-point coverage and its 24-bit depth; triangles it may clip (near plane, guard band) and
-slivers are kept.
+triangles, as the colour pass draws them, each of a pixel's four samples gets a bound of how deep
+the surface covering it lies at most (`_certify`): a sample counts as covered by a triangle only
+where it lies inside all three of its edges by COVER_PX, or, within COVER_PX of an edge that two
+triangles share (the same vertices: llvmpipe covers such a sample by exactly one of them), inside
+the other edges of both (`_across`). The triangle containing a sample need not be the one seen at
+a centre: it is found among those seen at the pixel and its eight neighbours, or by walking
+across shared edges from them. A triangle is hidden (`hidden`) where every sample it may cover
+has a bound nearer than the nearest depth it may draw there (its plane at the pixel centre, or its
+nearest corner), by margins that hold llvmpipe's float32 transform and set-up, its fixed-point
+coverage and its 24-bit depth; triangles it may clip (near plane, guard band) and slivers are
+kept. What needs no image (`prepare`) is made while llvmpipe draws the instance pass.
 """
 
 from __future__ import annotations
@@ -116,10 +117,10 @@ def _pair_edges(keys, out):
 
 
 @numba.njit(cache=True, nogil=True)
-def _setup(x, y, z, front, width, height, edges, plane, slack, low, local, centre, ok):
-    """Per triangle: normalised edge functions (inside >= 0, in px), depth plane, the depth slack
-    of a covering triangle, the lowest depth it may draw anywhere and how far below its plane at
-    a pixel centre it may draw in that pixel, its centroid, and whether it takes part."""
+def _setup(x, y, z, front, width, height, edges, plane, slack, low, centre, ok):
+    """Per triangle: normalised edge functions (inside >= 0, in px), depth plane, its depth slack
+    (how far from its plane at a pixel centre it may draw in that pixel), the lowest depth it may
+    draw anywhere, its centroid, and whether it takes part."""
     for i in range(x.shape[0]):
         ok[i] = False
         good = True
@@ -152,7 +153,6 @@ def _setup(x, y, z, front, width, height, edges, plane, slack, low, local, centr
         slope = abs(p) + abs(q)
         slack[i] = base + (SLOPE_PX + 0.5) * slope
         low[i] = zmin - base - (SLOPE_PX + REACH_PX) * slope
-        local[i] = base + (SLOPE_PX + 0.5) * slope
         centre[i, 0], centre[i, 1] = (x0 + x1 + x2) / 3, (y0 + y1 + y2) / 3
         ok[i] = True
 
@@ -325,10 +325,10 @@ def _span(edges, i, r, left, right, W):
 
 
 @numba.njit(cache=True, nogil=True)
-def _samples_clear(bound, pixels, edges, plane, low, local, samples, x, y, i):
+def _samples_clear(bound, pixels, edges, plane, low, slack, samples, x, y, i):
     """Whether every sample triangle i may cover (within COVER_PX of all its edges) is bounded
     below the lowest depth the triangle may draw in that pixel: its plane at the pixel centre,
-    less `local`, or its lowest anywhere."""
+    less its slack, or its lowest anywhere."""
     H, W = bound.shape[:2]
     top = max(0, int(math.floor(min(y[i, 0], min(y[i, 1], y[i, 2])) - REACH_PX - 0.5)))
     bottom = min(H - 1, int(math.ceil(max(y[i, 0], max(y[i, 1], y[i, 2])) + REACH_PX)))
@@ -337,7 +337,7 @@ def _samples_clear(bound, pixels, edges, plane, low, local, samples, x, y, i):
     for r in range(top, bottom + 1):
         a, b = _span(edges, i, r, left, right, W)
         for c in range(a, b + 1):
-            nearest = max(low[i], plane[i, 0] * (c + 0.5) + plane[i, 1] * (r + 0.5) + plane[i, 2] - local[i])
+            nearest = max(low[i], plane[i, 0] * (c + 0.5) + plane[i, 1] * (r + 0.5) + plane[i, 2] - slack[i])
             if pixels[r, c] < nearest:
                 continue
             for s in range(samples.shape[0]):
@@ -351,12 +351,12 @@ def _samples_clear(bound, pixels, edges, plane, low, local, samples, x, y, i):
 
 
 @numba.njit(cache=True, nogil=True)
-def _hidden(bound, pixels, tiles, edges, plane, low, local, ok, samples, x, y, out):
+def _hidden(bound, pixels, tiles, edges, plane, low, slack, ok, samples, x, y, out):
     """out[i]: no sample triangle i may cover is left where it could win: tried on the tiles
     under its box, then pixel by pixel and sample by sample."""
     for i in range(edges.shape[0]):
         out[i] = ok[i] and (_within(tiles, x, y, i, low[i])
-                            or _samples_clear(bound, pixels, edges, plane, low, local, samples, x, y, i))
+                            or _samples_clear(bound, pixels, edges, plane, low, slack, samples, x, y, i))
 
 
 
@@ -370,9 +370,8 @@ class Triangles:
     y: np.ndarray  # (n, 3) image rows (down)
     edges: np.ndarray  # (n, 3, 3) normalised edge functions, inside >= 0
     plane: np.ndarray  # (n, 3) window depth = p x + q y + r
-    slack: np.ndarray  # (n,) depth slack as a covering triangle
+    slack: np.ndarray  # (n,) how far from its plane at a pixel centre it may draw in that pixel
     low: np.ndarray  # (n,) lowest depth it may draw anywhere
-    local: np.ndarray  # (n,) how far below its plane at a pixel centre it may draw in that pixel
     centre: np.ndarray  # (n, 2)
     ok: np.ndarray  # (n,) bool: takes part
     adj: np.ndarray  # (n, 3) the triangle across each edge
@@ -384,9 +383,9 @@ def prepare(x: np.ndarray, y: np.ndarray, z: np.ndarray, front: np.ndarray, keys
     their shared vertices (equal keys, equal bits). What needs no image, made while the instance
     pass draws."""
     n = len(x)
-    t = Triangles(x, y, np.zeros((n, 3, 3)), np.zeros((n, 3)), np.zeros(n), np.zeros(n), np.zeros(n),
+    t = Triangles(x, y, np.zeros((n, 3, 3)), np.zeros((n, 3)), np.zeros(n), np.zeros(n),
                   np.zeros((n, 2)), np.zeros(n, bool), adjacency(keys))
-    _setup(x, y, z, front, width, height, t.edges, t.plane, t.slack, t.low, t.local, t.centre, t.ok)
+    _setup(x, y, z, front, width, height, t.edges, t.plane, t.slack, t.low, t.centre, t.ok)
     return t
 
 
@@ -400,5 +399,5 @@ def hidden(t: Triangles, seen: np.ndarray) -> np.ndarray:
     pixels, tiles = np.empty((H, W), np.float32), np.empty((-(-H // TILE), -(-W // TILE)), np.float32)
     _maxima(bound, pixels, tiles)
     out = np.empty(len(t.x), bool)
-    _hidden(bound, pixels, tiles, t.edges, t.plane, t.low, t.local, t.ok, SAMPLES, t.x, t.y, out)
+    _hidden(bound, pixels, tiles, t.edges, t.plane, t.low, t.slack, t.ok, SAMPLES, t.x, t.y, out)
     return out

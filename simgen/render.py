@@ -536,6 +536,7 @@ class _Layer:
     keys: list[np.ndarray]
     make: Callable[[list[np.ndarray]], list[pyrender.Primitive]]
     vertices: np.ndarray  # (V, 3) float32, node frame: corners == vertices[keys]
+    ready: Callable[[], None] = lambda: None  # what `make` needs that no culling changes
 
     @staticmethod
     def of(node: pyrender.Node, keys: list[np.ndarray], vertices: np.ndarray) -> _Layer:
@@ -779,6 +780,7 @@ class _Wear:
     faces: np.ndarray
     wearing: Wearing | None = None
     among: np.ndarray | None = None
+    uv: np.ndarray | None = None  # a façade's: its faces' texture coordinates (_Static.ready)
 
 
 @dataclass
@@ -794,7 +796,17 @@ class _Static:
     shader: _Shader
     wears: list[_Wear]
 
+    def ready(self) -> None:
+        """The façades' texture coordinates, which come from whole walls, drawn or not."""
+        for w in self.wears:
+            if w.wearing is not None and w.wearing.kind in FACADE_KINDS and w.uv is None:
+                worn = w.wearing
+                own = slice(self.first[worn.part], self.first[worn.part + 1])  # the part's faces
+                t, n = self.tris[own][worn.faces], self.normals[own][worn.faces]
+                w.uv = facade_uv(t, n, worn.tile, worn.shift)[w.among]
+
     def make(self, keep: list[np.ndarray]) -> list[pyrender.Primitive]:
+        self.ready()
         drawn = np.zeros(len(self.tris), bool)
         for w, k in zip(self.wears, keep):
             drawn[w.faces[k]] = True
@@ -807,10 +819,8 @@ class _Static:
         if w.wearing is None:
             return _primitive(self.tris[g], self.shader.gl_normals(self.normals[g]), rgba[g], _PLAIN)
         worn = w.wearing
-        if worn.kind in FACADE_KINDS:  # from the whole wall, drawn or not
-            own = slice(self.first[worn.part], self.first[worn.part + 1])  # the part's faces
-            t, n = self.tris[own][worn.faces], self.normals[own][worn.faces]
-            uv = facade_uv(t, n, worn.tile, worn.shift)[w.among[keep]]
+        if worn.kind in FACADE_KINDS:
+            uv = w.uv[keep]
         else:  # face by face
             uv = _planar_uv(self.tris[g], self.normals[g], worn.tile, worn.shift)
         colour = rgba[g] * np.array([textures.MAX_GAIN] * 3 + [1.0])
@@ -844,7 +854,8 @@ def _static_mesh(parts: list[Part], shader: _Shader, world: World, view: _View
     static = _Static(parts, tris, normals, first, layout, shader, wears)
     node = pyrender.Node(mesh=_Mesh([], _translucent(shader, normals[seen])))
     corners = [tris[w.faces].astype(np.float32) for w in wears]
-    return _Layer(node, corners, [faces[w.faces] for w in wears], static.make, vertices.astype(np.float32)), casters
+    return (_Layer(node, corners, [faces[w.faces] for w in wears], static.make, vertices.astype(np.float32),
+                   static.ready), casters)
 
 
 def _translucent(shader: _Shader, normals: np.ndarray) -> bool:
@@ -889,17 +900,35 @@ def _dome() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     return P.reshape(-1, 3)[faces], UV.reshape(-1, 2)[faces], faces, P.reshape(-1, 3)
 
 
+@dataclass
+class _Dome:
+    """The sky dome's one primitive, its texture drawn (this frame's clouds) when first needed."""
+
+    world: World
+    headroom: float
+    primitive: pyrender.Primitive | None = None
+
+    def ready(self) -> None:
+        if self.primitive is None:
+            rng = factor_rng(self.world.seed, self.world.frame_index, "sky")
+            tris, uv, _, _ = _dome()
+            tex = pyrender.Texture(source=_sky_texture(rng, self.world.appearance.cloud_cover, self.headroom),
+                                   source_channels="RGB")
+            mat = pyrender.MetallicRoughnessMaterial(baseColorTexture=tex, metallicFactor=0.0, doubleSided=True)
+            self.primitive = _primitive(tris, None, np.ones((len(tris), 4)), mat, uv)  # lit looks: flat
+
+    def make(self, keep: list[np.ndarray]) -> list[pyrender.Primitive]:
+        self.ready()
+        return _shown([self.primitive], keep)
+
+
 def _sky_dome(world: World, headroom: float, eye: np.ndarray) -> _Layer:
     """A textured dome around the camera (at `eye`) for the lit looks (not in the instance pass:
     its pixels keep depth 0 and instance 0)."""
-    rng = factor_rng(world.seed, world.frame_index, "sky")
-    tris, uv, faces, grid = _dome()
-    tex = pyrender.Texture(source=_sky_texture(rng, world.appearance.cloud_cover, headroom),
-                           source_channels="RGB")
-    mat = pyrender.MetallicRoughnessMaterial(baseColorTexture=tex, metallicFactor=0.0, doubleSided=True)
-    mesh = _Mesh([_primitive(tris, None, np.ones((len(tris), 4)), mat, uv)])  # lit looks: flat
-    return _Layer.of(pyrender.Node(mesh=mesh, matrix=np.r_[np.c_[np.eye(3), eye], [[0, 0, 0, 1]]]), [faces],
-                     grid.astype(np.float32))
+    tris, _, faces, grid = _dome()
+    dome = _Dome(world, headroom)
+    node = pyrender.Node(mesh=_Mesh([], False), matrix=np.r_[np.c_[np.eye(3), eye], [[0, 0, 0, 1]]])
+    return _Layer(node, [tris.astype(np.float32)], [faces], dome.make, grid.astype(np.float32), dome.ready)
 
 
 @dataclass
@@ -948,12 +977,12 @@ class BuiltScene:
         todo = [self.instances[k] for k in order]
         r._platform.make_current()
         ids, z = instance_pass.draw([i.draw for i in todo], view, self._projection(r), r.viewport_width,
-                                    r.viewport_height, lambda: self._prepare(r))
+                                    r.viewport_height, lambda: self._meanwhile(r))
         r._platform.make_uncurrent()
-        actor = np.concatenate([[0], *(np.full(len(i.draw.tris), i.actor) for i in todo)]).astype(np.uint16)
+        actor = np.concatenate([[0], *(np.full(len(i.draw.tris), i.actor) for i in todo)])
         triangle = np.concatenate([[-1], *(np.full(len(i.draw.tris), -1) if i.drawn_as is None
                                            else first[i.drawn_as[0]] + i.drawn_as[1] for i in todo)])
-        return Seen(np.take(actor, ids), _metres(z, camera.camera), np.take(triangle.astype(np.int64), ids))
+        return Seen(*instance_pass.resolve(ids, z, actor, triangle, camera.camera.znear, camera.camera.zfar))
 
     def colour_pass(self, r: pyrender.OffscreenRenderer, seen: Seen | None = None,
                     meanwhile: Callable[[], object] | None = None) -> np.ndarray | tuple[np.ndarray, object]:
@@ -978,6 +1007,13 @@ class BuiltScene:
 
     def _projection(self, r: pyrender.OffscreenRenderer) -> np.ndarray:
         return self.scene.main_camera_node.camera.get_projection_matrix(r.viewport_width, r.viewport_height)
+
+    def _meanwhile(self, r: pyrender.OffscreenRenderer) -> None:
+        """What the colour pass needs that the instance pass's image does not change, made while
+        llvmpipe draws that pass: the culling's view of the layers, the layers' ready parts."""
+        self._prepare(r)
+        for layer in self.layers:
+            layer.ready()
 
     def _prepare(self, r: pyrender.OffscreenRenderer) -> None:
         """The layers' triangles as the culling reads them (occlusion.prepare): no image needed,
@@ -1012,14 +1048,6 @@ def _shown(primitives: list[pyrender.Primitive], keep: list[np.ndarray]) -> list
                 positions=p.positions[corner], normals=None if p.normals is None else p.normals[corner],
                 color_0=None if p.color_0 is None else p.color_0[corner],
                 texcoord_0=None if p.texcoord_0 is None else p.texcoord_0[corner], material=p.material))
-    return out
-
-
-def _metres(z: np.ndarray, camera: pyrender.Camera) -> np.ndarray:
-    """Camera z (metres) of window depths, 0 where none (1): pyrender's arithmetic, in float32."""
-    d = 2.0 * z - 1.0
-    out = (2.0 * camera.znear * camera.zfar) / (camera.zfar + camera.znear - d * (camera.zfar - camera.znear))
-    out[z == 1.0] = 0.0
     return out
 
 

@@ -8,6 +8,8 @@ from __future__ import annotations
 import numpy as np
 import pyrender
 import pytest
+from OpenGL import GL
+from OpenGL.GL import shaders
 from pyrender.constants import RenderFlags
 
 from simgen import instance_pass, occlusion
@@ -86,14 +88,25 @@ def test_a_triangle_off_the_image_is_hidden_one_across_the_near_plane_is_kept():
     assert not occlusion.hidden(occlusion.prepare(x, y, z, front, keys, W, H), _seen_wall())[2]
 
 
-def test_the_depth_blits_round_trip_by_hand():
+def test_depths_as_pyrenders_blit_and_read_by_hand():
     """A 24-bit depth through float32 and back (times 1 / (2^24 - 1), then 2^24 - 1, rounded):
     some move up one step (8388607, 16777214: float32 rounds the product above them), others and
-    the largest depth stay; read, each is divided by 2^24 - 1."""
-    z24 = np.array([0, 2, 8388607, 8388608, 16777214, 16777215], np.uint32)
-    got = instance_pass._blit_depth(z24)
+    the largest depth stay; read, each is divided by 2^24 - 1 and made camera z as pyrender does
+    (0 where nothing is drawn); against numpy's float32 operators on a million more depths."""
+    near, far = 0.3, 400.0
+    z24 = np.r_[[0, 2, 8388607, 8388608, 16777214, 16777215],
+                np.random.default_rng(0).integers(0, 1 << 24, 1_000_000)].astype(np.uint32)[None]
     moved = np.array([0, 2, 8388608, 8388608, 16777215, 16777215])
-    assert np.array_equal(got, (moved / 16777215.0).astype(np.float32))
+    f32 = np.float32
+    back = np.round(z24.astype(f32) * f32(1.0 / 16777215) * f32(16777215))
+    assert np.array_equal(back[0, :6], moved)
+    z = (np.minimum(back, 16777215) / 16777215.0).astype(f32)
+    want = (2.0 * near * far) / (far + near - (2.0 * z - 1.0) * (far - near))
+    want[z == 1.0] = 0.0
+    actor, triangle = np.array([0, 7]), np.array([-1, 3])
+    inst, depth, seen = instance_pass.resolve(np.ones_like(z24), z24, actor, triangle, near, far)
+    assert np.array_equal(depth.view(np.uint32), want.view(np.uint32)) and depth[0, 5] == 0.0
+    assert (inst == 7).all() and (seen == 3).all()
 
 
 _PLAIN: dict[tuple[int, int], pyrender.OffscreenRenderer] = {}
@@ -151,3 +164,74 @@ def test_culling_leaves_every_pixel_as_it_was(spec, frame, mode, monkeypatch):
     for a, b in ((culled.color, whole.color), (culled.depth, whole.depth), (culled.instance, whole.instance)):
         assert np.array_equal(a, b)
     assert hidden.mean() > (0.5 if mode == "lit" else 0.0)
+
+
+_FETCH = ("""#version 330 core
+void main() { gl_Position = vec4((gl_VertexID & 1) * 4.0 - 1.0, (gl_VertexID >> 1) * 4.0 - 1.0, 0.0, 1.0); }""",
+          """#version 330 core
+uniform sampler2DMS image;
+uniform int s;
+out vec4 colour;
+void main() { colour = texelFetch(image, ivec2(gl_FragCoord.xy), s); }""")
+
+
+def _samples(r: pyrender.OffscreenRenderer) -> list[np.ndarray]:
+    """Each of the four samples of the renderer's last multisampled colour buffer, (H, W, 4)."""
+    rr, W, H = r._renderer, r.viewport_width, r.viewport_height
+    r._platform.make_current()
+    tex = GL.glGenTextures(1)
+    GL.glBindTexture(GL.GL_TEXTURE_2D_MULTISAMPLE, tex)
+    GL.glTexImage2DMultisample(GL.GL_TEXTURE_2D_MULTISAMPLE, 4, GL.GL_RGBA8, W, H, GL.GL_TRUE)
+    fb = GL.glGenFramebuffers(1)
+    GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, fb)
+    GL.glFramebufferTexture2D(GL.GL_FRAMEBUFFER, GL.GL_COLOR_ATTACHMENT0, GL.GL_TEXTURE_2D_MULTISAMPLE, tex, 0)
+    GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, rr._main_fb_ms)
+    GL.glBlitFramebuffer(0, 0, W, H, 0, 0, W, H, GL.GL_COLOR_BUFFER_BIT, GL.GL_NEAREST)
+    program = shaders.compileProgram(shaders.compileShader(_FETCH[0], GL.GL_VERTEX_SHADER),
+                                     shaders.compileShader(_FETCH[1], GL.GL_FRAGMENT_SHADER))
+    GL.glBindVertexArray(GL.glGenVertexArrays(1))
+    GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, rr._main_fb)
+    GL.glDisable(GL.GL_DEPTH_TEST)
+    GL.glDisable(GL.GL_BLEND)
+    GL.glUseProgram(program)
+    GL.glBindTexture(GL.GL_TEXTURE_2D_MULTISAMPLE, tex)
+    out = []
+    for s in range(4):
+        GL.glUniform1i(GL.glGetUniformLocation(program, "s"), s)
+        GL.glDrawArrays(GL.GL_TRIANGLES, 0, 3)
+        out.append(np.frombuffer(GL.glReadPixels(0, 0, W, H, GL.GL_RGBA, GL.GL_UNSIGNED_BYTE), np.uint8)
+                   .reshape(H, W, 4).astype(np.int64))
+    GL.glUseProgram(0)
+    r._platform.make_uncurrent()
+    return out
+
+
+@pytest.mark.parametrize("spec, frame", [("scenes/urban.yaml", 1), ("scenes/urban.yaml", 8)])
+def test_no_triangle_that_wins_a_sample_is_left_out(spec, frame):
+    """The colour pass's layers drawn as pyrender draws them, each triangle in a colour of its own
+    number, and every sample of the multisampled image read: no triangle the culling leaves out
+    is any sample's, and most it keeps are (a triangle that wins no sample changes no byte; one
+    that wins one may)."""
+    world = sample_world(load_spec(spec), 0, frame)
+    built = R.build_scene(world)
+    r = R.renderer(world.rig.width, world.rig.height)
+    hidden = built._hidden(r, built.instance_pass(r).triangle)
+    scene, first = R._Scene(), 1
+    for layer in built.layers:
+        primitives = []
+        for corners in layer.corners:
+            ids = np.repeat(np.arange(first, first + len(corners)), 3)
+            first += len(corners)
+            colour = np.stack([ids % 256, ids // 256 % 256, ids // 65536, np.full(len(ids), 128)], 1) / 255.0
+            primitives.append(pyrender.Primitive(positions=corners.reshape(-1, 3), color_0=colour, material=R._PLAIN))
+        scene.add_node(pyrender.Node(mesh=R._Mesh(primitives, layer.node.mesh.is_transparent), matrix=layer.node.matrix))
+    scene.add_node(pyrender.Node(camera=built.scene.main_camera_node.camera,
+                                 matrix=built.scene.get_pose(built.scene.main_camera_node)))
+    plain = _plain(world.rig.width, world.rig.height)
+    plain.render(scene, flags=RenderFlags.FLAT | RenderFlags.RGBA)
+    wins = np.zeros(first, bool)
+    for sample in _samples(plain):
+        wins[np.unique(sample[..., 0] + 256 * sample[..., 1] + 65536 * sample[..., 2])] = True
+    wins = wins[1:]  # number 0: the background
+    assert wins.sum() > 1000 and not (hidden & wins).any()
+    assert hidden.mean() > 0.7
