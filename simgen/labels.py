@@ -3,19 +3,19 @@
 Per actor:
 - silhouette: the union of its parts' projections (cut at a 5 cm near plane), an exact polygon
   in image_2 pixels (pixel centres at integer coordinates, as in KITTI);
-- 2D box, as KITTI's: the projection of the actor's box stood upright in the LiDAR's (the rig's
-  reference) frame, turned to the actor's heading (KITTI annotated yaw-only boxes in the Velodyne
-  clouds and projected them; label_2 keeps a yaw about camera y only, so its 3D box is tilted
-  from that one by the calibration's 0.6 deg of pitch and of roll; on a flat road the 2D box is
-  `kitti.boxes.project_boxes(box7, calib, size, upright="lidar")` exactly). Its 8 corners, cut at
-  the near plane when the box reaches behind the camera, clipped to the image [-0.5, W-0.5] x
-  [-0.5, H-0.5], then clamped to pixel indices [0, W-1] x [0, H-1]. On the real dev frames the
-  vehicles' boxes lie a median 0.2 px from that projection and 0.6 px from the label box's own;
-  the box is a little larger than the mesh's silhouette, whose own box goes to meta/ as
-  `silhouette_bbox`. For the classes in `silhouette_sides` (default Pedestrian) the left and right
-  sides are the silhouette's, as KITTI's devkit says its pedestrians' were labelled again in the
-  image (width over the projection's, median: 0.81 on the real dev frames' three, 0.82 on 200
-  frames of `scenes/urban.yaml`);
+- 2D box, as KITTI's: the projection of the label's own 3D box (its numbers as written) stood
+  upright in the LiDAR's (the rig's reference) frame (KITTI annotated yaw-only boxes in the
+  Velodyne clouds and projected them; label_2 keeps a yaw about camera y only, so its 3D box is
+  tilted from that one by the calibration's 0.6 deg of pitch and of roll): its corners, cut at
+  the near plane when the box reaches behind the camera, their bounds clamped to pixel indices
+  [0, W-1] x [0, H-1]. So every row's box is `kitti.boxes.project_boxes(box7, calib, size,
+  upright="lidar")` of the row itself, on a tilted or graded road as on a flat one, truncated or
+  not. On the real dev frames the vehicles' boxes lie a median 0.2 px from that projection and
+  0.6 px from the label box's own. The box is a little larger than the mesh's silhouette, whose
+  own box goes to meta/ as `silhouette_bbox`. For the classes in `silhouette_sides` (default
+  Pedestrian) the left and right sides are the silhouette's, as KITTI's devkit says its
+  pedestrians' were labelled again in the image (width over the projection's, median: 0.81 on
+  the real dev frames' three, 0.82 on 200 frames of `scenes/urban.yaml`);
 - truncation: the share of the silhouette's area outside the image (the mesh, not the box); an
   object reaching behind the camera plane projects without bound, so its truncation is ~1;
 - visible share: the actor's instance-mask pixels over the area of its silhouette inside the
@@ -38,7 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 import shapely
 
-from kitti.boxes import alpha_from_rotation_y, wrap_angle
+from kitti.boxes import alpha_from_rotation_y, project_boxes, wrap_angle
 from kitti.labels import Object3D
 
 from .spec import LabelRules
@@ -161,19 +161,9 @@ def box_outline(lo: np.ndarray, hi: np.ndarray, cam_from_actor: np.ndarray,
     return _convex_part_outline(v, _BOX_EDGES, K)
 
 
-def _kitti_box_pose(actor: Actor, centre: np.ndarray, lo: np.ndarray, hi: np.ndarray,
-                    reference_pose: np.ndarray) -> np.ndarray:
-    """The pose of the box KITTI's annotators would have drawn: the actor's box about the same
-    bottom centre (world), stood upright in the reference (LiDAR) frame and turned to the actor's
-    heading as that frame's horizontal plane sees it (a yaw-only box in the point cloud)."""
-    ref = reference_pose[:3, :3]
-    head = ref.T @ actor.pose[:3, 0]
-    yaw = np.arctan2(head[1], head[0])
-    c, s = np.cos(yaw), np.sin(yaw)
-    pose = np.eye(4)
-    pose[:3, :3] = ref @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-    pose[:3, 3] = centre[:3] - pose[:3, :3] @ np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
-    return pose
+def _as_written(box7: np.ndarray) -> np.ndarray:
+    """The box as its label row states it (four decimals), so the 2D box is that of the row."""
+    return np.array([float(f"{v:.4f}") for v in box7])
 
 
 def _clipped_bounds(outline: shapely.Geometry, image: shapely.Geometry, W: int,
@@ -211,13 +201,13 @@ def derive(world: World, instance: np.ndarray, rules: LabelRules,
         reach = box_outline(lo, hi, cam @ actor.pose, K)
         sil = silhouette(actor, cam, K) if reach is not None and reach.intersects(image) else None
         inside = sil.intersection(image) if sil is not None else None
-        if inside is None or inside.area <= 0:
+        bbox = (project_boxes(_as_written(box7)[None], rig.calib, (W, H), upright="lidar")[0]
+                if inside is not None and inside.area > 0 else None)
+        if bbox is None or not np.isfinite(bbox).all():  # no pixel, or a box behind the camera
             truths.append(ActorTruth(actor.id, actor.cls, box7, False, None, 1.0, 0, 0.0, dist,
                                      "out_of_view"))
             continue
         sil_bbox = _clipped_bounds(inside, image, W, H)
-        outline = box_outline(lo, hi, cam @ _kitti_box_pose(actor, centre, lo, hi, rig.reference_pose), K)
-        bbox = _clipped_bounds(outline if outline is not None else reach, image, W, H)
         if actor.cls in rules.silhouette_sides:
             bbox[[0, 2]] = sil_bbox[[0, 2]]
         trunc = float(np.clip(1.0 - inside.area / sil.area, 0.0, 1.0))

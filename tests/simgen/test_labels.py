@@ -11,6 +11,7 @@ from scipy.optimize import brentq
 
 from kitti.boxes import alpha_from_rotation_y, box_corners, project_boxes, wrap_angle
 from kitti.dataset import KittiDataset
+from kitti.labels import parse_label_line
 from simgen.labels import derive
 from simgen.meshes import build_actor_parts
 from simgen.render import render
@@ -47,6 +48,11 @@ def mask_box(instance: np.ndarray, actor_id: int) -> np.ndarray:
                      min(ys.max() + 0.5, h - 1)], float)
 
 
+def written(row) -> np.ndarray:
+    """The row's 3D box as its label line states it."""
+    return parse_label_line(row.to_line()).box7
+
+
 RULES = LabelRules(min_height_px=0, max_distance=1000, min_visible_share=0.0)
 
 
@@ -65,7 +71,7 @@ def test_lone_car_label_box_is_the_projected_3d_box_and_the_mask_box_its_silhoue
     assert row.type == "Car" and row.occluded == 0 and row.truncated == 0.0
     size = (world.rig.width, world.rig.height)
     calib = world.rig.calib
-    np.testing.assert_allclose(row.bbox, project_boxes(row.box7[None], calib, size, upright="lidar")[0],
+    np.testing.assert_allclose(row.bbox, project_boxes(written(row)[None], calib, size, upright="lidar")[0],
                                atol=1e-6)  # KITTI's convention, exactly
     mb = mask_box(out.instance, 1)
     np.testing.assert_allclose(t.silhouette_bbox, mb, atol=1.0)
@@ -192,7 +198,7 @@ def test_user_mesh_actor_is_labelled_from_its_own_geometry(tmp_path):
     assert row.type == "Misc" and (row.h, row.w, row.l) == pytest.approx((2.0, 1.0, 4.0))
     np.testing.assert_allclose(t.silhouette_bbox, mask_box(out.instance, 1), atol=1.0)
     size = (world.rig.width, world.rig.height)
-    kitti_box = project_boxes(row.box7[None], world.rig.calib, size, upright="lidar")[0]
+    kitti_box = project_boxes(written(row)[None], world.rig.calib, size, upright="lidar")[0]
     np.testing.assert_allclose(row.bbox, kitti_box, atol=1e-6)
     assert t.visible_share > 0.95 and row.occluded == 0
 
@@ -206,6 +212,34 @@ def test_car_beside_the_camera_is_cut_at_the_near_plane_and_truncated():
     np.testing.assert_allclose(t.silhouette_bbox, mask_box(out.instance, 1), atol=1.0)
 
 
+def _tilted(T: np.ndarray, pitch: float, roll: float) -> np.ndarray:
+    """T with its body pitched (nose up) and rolled, as on a graded, crowned road."""
+    cp, sp, cr, sr = np.cos(pitch), np.sin(pitch), np.cos(roll), np.sin(roll)
+    out = T.copy()
+    out[:3, :3] = T[:3, :3] @ np.array([[cp, 0, -sp], [0, 1, 0], [sp, 0, cp]]) @ np.array(
+        [[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
+    return out
+
+
+@pytest.mark.parametrize("T", [
+    _tilted(pose(14.0, 2.0, 0.3), 0.06, 0.03),   # on a 6 % grade, rolled by a 3 % crown
+    _tilted(pose(6.0, 4.2, -0.2), -0.05, -0.04),  # near, tilted the other way, cut by the image side
+    pose(2.2, -2.2),                              # beside the camera, reaching behind it
+    _tilted(pose(9.0, -5.5, 0.1), 0.04, 0.025),   # cut by the right side, tilted
+], ids=["graded", "near-cut", "beside", "cut-right"])
+def test_every_2d_box_is_the_projection_of_its_written_label_row(T):
+    """KITTI's convention for every row, tilted or truncated: the 2D box is the projection of the
+    3D box the row states (as read back from its text), stood upright in the LiDAR's frame, its
+    bounds clamped to the image; the tilted mesh's own silhouette does not set it."""
+    world = world_of([(CAR, T)])
+    _, (row,), t = _label(world)
+    back = parse_label_line(row.to_line())
+    proj = project_boxes(written(row)[None], world.rig.calib, (world.rig.width, world.rig.height),
+                         upright="lidar")[0]
+    np.testing.assert_allclose(back.bbox, proj, atol=1e-4)  # four decimals written
+    assert t.truncation > 0.0 or T[2, 0] != 0.0  # each case is tilted or cut
+
+
 PED = {"kind": "pedestrian", "dims": [1.76, 0.66, 0.84], "color": [0.2, 0.25, 0.4], "seed": 11}
 
 
@@ -215,7 +249,7 @@ def test_pedestrian_box_takes_its_sides_from_the_silhouette_and_its_top_and_bott
     world = world_of([(PED, pose(x, y, yaw))], cls="Pedestrian")
     out, (row,), t = _label(world)
     size = (world.rig.width, world.rig.height)
-    proj = project_boxes(row.box7[None], world.rig.calib, size, upright="lidar")[0]
+    proj = project_boxes(written(row)[None], world.rig.calib, size, upright="lidar")[0]
     np.testing.assert_allclose(row.bbox[[1, 3]], proj[[1, 3]], atol=1e-6)
     np.testing.assert_array_equal(row.bbox[[0, 2]], t.silhouette_bbox[[0, 2]])
     np.testing.assert_allclose(row.bbox[[0, 2]], mask_box(out.instance, 1)[[0, 2]], atol=1.0)
