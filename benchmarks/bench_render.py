@@ -4,7 +4,8 @@ Prints (1) the world sampling time (scenery and actor meshes) and the render tim
 frame of scenes/urban.yaml, split into scene build, segmentation+depth pass (simgen.instance_pass,
 drawn first), colour pass (4x MSAA, with the culling of its hidden triangles; the actors'
 occlusion of the sky is computed while llvmpipe draws it, and counted here), sun shadows
-(Embree), the look and camera (fog/rain/sensor, exposure,
+(Embree; the static world from the spec's LiDAR's scene, built first as simgen.generate builds
+it and timed on its own), the look and camera (fog/rain/sensor, exposure,
 noise, demosaicing; beside it the same with the camera's rectification off, the CFA on the output's
 own pixels, timed in the same loop) and the label derivation; (2) complete frames per second
 (sample + render + labels + all files, no LiDAR, and with the spec's LiDAR) of `simgen.generate`
@@ -31,9 +32,11 @@ from pyrender.constants import RenderFlags
 from simgen.factors import factor_rng
 from simgen.generate import generate
 from simgen.labels import derive
+from simgen.lidar import build_target, preset
 from simgen.look import apply_look
 from simgen.render import HEADROOM, build_scene, renderer, shade, skylight
 from simgen.sample import sample_world
+from simgen.shadows import WorldScene
 from simgen.spec import load_spec
 from testbed.backends import LocalBackend
 
@@ -48,10 +51,13 @@ def render_breakdown(spec, n: int) -> None:
     warm = build_scene(worlds[0])  # warm-up: shaders compile on the first render
     warm.colour_pass(r, warm.instance_pass(r))
     t = {"build": [], "colour": [], "seg+depth": [], "shadows": [], "look": [], "labels": [],
-         "look, rectification off": []}
+         "look, rectification off": [], "lidar scene": []}
     for w in worlds:
+        tl = time.perf_counter()
+        scene = lidar_scene(spec, w)
         t0 = time.perf_counter()
         built = build_scene(w)
+        built.casters.world = scene
         t1 = time.perf_counter()
         seen = built.instance_pass(r)
         t2 = time.perf_counter()
@@ -74,7 +80,7 @@ def render_breakdown(spec, n: int) -> None:
         t7 = time.perf_counter()
         for k, a, b in (("build", t0, t1), ("seg+depth", t1, t2), ("colour", t2, t3),
                         ("shadows", t3, t4), ("look", t4, t5), ("labels", t5, t6),
-                        ("look, rectification off", t6, t7)):
+                        ("look, rectification off", t6, t7), ("lidar scene", tl, t0)):
             t[k].append(1000 * (b - a))
     actors = np.mean([len(w.actors) for w in worlds])
     print(f"{spec.name}: {n} frames of {worlds[0].rig.width}x{worlds[0].rig.height}, "
@@ -83,9 +89,18 @@ def render_breakdown(spec, n: int) -> None:
           "(simgen.sample_world: scenery and actor meshes)")
     for k, v in t.items():
         print(f"  {k:10s} {np.median(v):7.1f} ms median  {np.mean(v):7.1f} ms mean")
-    print("  (the look's first frame builds the rectification maps, once a process)")
+    print("  (the look's first frame builds the rectification maps, once a process; the lidar scene is the")
+    print("  spec's LiDAR's Embree scene, built before the render as simgen.generate does: the sun's shadows use it)")
     render = sum(np.array(t[k]) for k in ("build", "colour", "seg+depth", "shadows"))
     print(f"  RENDER (build + colour + seg/depth + shadows): {np.median(render):.1f} ms median per frame")
+
+
+def lidar_scene(spec, world) -> WorldScene | None:
+    """The spec's LiDAR's scene of `world` as simgen.generate hands it to the render; None without one."""
+    if spec.lidar is None:
+        return None
+    target = build_target(world, preset(spec.lidar.preset, beams=spec.lidar.beams, max_range=spec.lidar.max_range))
+    return WorldScene(target.scene, target.first_actor)
 
 
 def throughput(spec, n: int, workers: int, lidar: bool) -> None:

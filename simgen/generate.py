@@ -36,6 +36,7 @@ from .render import render
 from .rescan import lidar_seed
 from .road import RoadLayout
 from .sample import sample_world
+from .shadows import WorldScene
 from .spec import SceneSpec, spec_to_dict
 
 DEPTH_SCALE = 256.0
@@ -96,7 +97,12 @@ def make_frame(job: Job) -> str:
     if meta_path.exists() and all(p.exists() for p in frame_files(training, fid, section is not None)):
         return fid
     world = sample_world(job.spec, job.seed, job.index)
-    out = render(world)
+    target = None
+    if section is not None:  # the LiDAR's scene of the world, built first: the sun's shadows use it too
+        lidar = _lidar_api()
+        lspec = lidar.preset(section.preset, beams=section.beams, max_range=section.max_range)
+        target = lidar.build_target(world, lspec)
+    out = render(world, None if target is None else WorldScene(target.scene, target.first_actor))
     rig = world.rig
     look_rng = factor_rng(job.seed, job.index, "look")
     image = apply_look(out.color, out.depth, rig.intrinsics(), world.weather, world.light,
@@ -104,9 +110,7 @@ def make_frame(job: Job) -> str:
     counts = None
     lidar_info = None
     if section is not None:
-        lidar = _lidar_api()
-        lspec = lidar.preset(section.preset, beams=section.beams, max_range=section.max_range)
-        scan = lidar.scan(world, lspec, lidar_seed(job.seed, job.index))
+        scan = lidar.scan(world, lspec, lidar_seed(job.seed, job.index), target)
         lidar.write_scan(training, fid, scan)
         counts = scan.point_counts()
         lidar_info = lidar.sensor_record(section.preset, section.beams, section.max_range)

@@ -48,7 +48,7 @@ from . import facets, instance_pass, occlusion, textures  # noqa: E402
 from .camera import LUMA  # noqa: E402
 from .factors import factor_rng  # noqa: E402
 from .meshes import EMISSIVE  # noqa: E402
-from .shadows import Occluders, Reach, sky_occlusion, sun_shadow  # noqa: E402
+from .shadows import Occluders, Reach, SplitCasters, WorldScene, sky_occlusion, sun_shadow  # noqa: E402
 from .texture_layout import FACADE_KINDS, StaticLayout, Wearing, facade_uv, static_layout  # noqa: E402
 from .world import Part, World  # noqa: E402
 
@@ -110,9 +110,15 @@ class Casters:
     static: Occluders
     actors: Occluders
     reach: Reach
+    world: WorldScene | None = None  # the LiDAR's scene of this world, where it has one
 
     def every(self) -> Occluders:
         return Occluders.join(self.static, self.actors)
+
+    def sun(self) -> Occluders | SplitCasters:
+        """What casts the sun's shadows: every triangle in a scene of its own, or where the LiDAR's
+        scene of the world is at hand, that scene for the static world (no second build of it)."""
+        return self.every() if self.world is None else SplitCasters(self.world, self.static, self.actors)
 
 
 class _ExactCamera(pyrender.IntrinsicsCamera):
@@ -1164,7 +1170,7 @@ def shade(world: World, color: np.ndarray, depth: np.ndarray, instance: np.ndarr
         return rgb
     rig = world.rig
     K, cam2_from_world = rig.intrinsics(), rig.cam2_from_world()
-    sun = sun_shadow(casters.every(), depth, K, cam2_from_world, _to_sun(world.light), color[..., 3] < 250)
+    sun = sun_shadow(casters.sun(), depth, K, cam2_from_world, _to_sun(world.light), color[..., 3] < 250)
     if sky is None:
         sky = skylight(world, depth, instance, casters)
     # Only darkened pixels change (elsewhere the factor is exactly 1).
@@ -1199,10 +1205,13 @@ def _darken(rgb, alpha, sun, sky, share, out):
             out[i, c] = np.uint8(min(max(v, np.float32(0.0)), np.float32(255.0)))
 
 
-def render(world: World) -> RenderOutput:
+def render(world: World, scene: WorldScene | None = None) -> RenderOutput:
+    """The camera's images of `world`; `scene`, an Embree scene of it built for the LiDAR, spares
+    the sun's shadows a scene of the static world of their own."""
     rig = world.rig
     r = renderer(rig.width, rig.height)
     built = build_scene(world)
+    built.casters.world = scene
     seen = built.instance_pass(r)
     cull = seen if software(r) else None
     lit = bool(built.flags & RenderFlags.RGBA)

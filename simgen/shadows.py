@@ -19,7 +19,7 @@ cosine-weighted sky that the actors' meshes hide, with a fixed set of rays per p
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
@@ -54,6 +54,8 @@ class Occluders:
     vertices: np.ndarray  # (V, 3) float32
     faces: np.ndarray  # (F, 3) int32
     depth: np.ndarray  # (F,) float32, 1 - porosity ** 2
+    # Built once: the skylight's rays and the sun's may meet the actors' triangles
+    _scene: EmbreeScene | None = field(default=None, init=False, repr=False, compare=False)
 
     @staticmethod
     def empty() -> Occluders:
@@ -79,7 +81,16 @@ class Occluders:
 
     def scene(self) -> EmbreeScene:
         """An Embree scene of the triangles."""
-        return embree_scene(self.vertices, self.faces)
+        if self._scene is None:
+            self._scene = embree_scene(self.vertices, self.faces)
+        return self._scene
+
+    def shadow(self, origins: np.ndarray, direction: np.ndarray) -> np.ndarray:
+        """(N,) float32 shadow depth of the first triangle each ray from `origins` (N, 3) float32
+        along the unit `direction` meets, 0 where it meets none."""
+        near = self.along(origins, direction)
+        prim = near.scene().run(origins, _rays(direction, len(origins)))
+        return np.where(prim >= 0, near.depth[np.maximum(prim, 0)], np.float32(0.0))
 
     def along(self, points: np.ndarray, direction: np.ndarray) -> Occluders:
         """The triangles that a ray from one of `points` (N, 3) along the unit `direction` may
@@ -108,6 +119,66 @@ class Occluders:
                          np.concatenate([a.depth, b.depth]))
 
 
+@dataclass
+class WorldScene:
+    """An Embree scene of the whole world built for another sensor (the LiDAR's target): its first
+    `statics` triangles are the static world's, in the order of World.static; the actors' come
+    after them, posed at other times than the camera's."""
+
+    scene: EmbreeScene
+    statics: int
+
+
+@dataclass
+class SplitCasters:
+    """The sun's casters without a scene of their own: the static world from `world` (the same
+    triangles as `static`, so the same hits), the actors at the camera's poses from their own
+    scene (built once for the skylight, Occluders.scene). A ray's first hit is the nearer of the
+    two; where `world` shows an actor of its own poses first and the camera's actors no nearer,
+    the static world beyond it is cast for those few rays in a scene of `static` near them."""
+
+    world: WorldScene
+    static: Occluders
+    actors: Occluders
+
+    def __post_init__(self) -> None:
+        if self.world.statics != len(self.static.faces):
+            raise ValueError(f"the world scene holds {self.world.statics} static triangles, "
+                             f"the camera's static world {len(self.static.faces)}")
+
+    def shadow(self, origins: np.ndarray, direction: np.ndarray) -> np.ndarray:
+        """As Occluders.shadow over the static world and the actors together. Where two
+        triangles lie at exactly the same distance either may be taken, as in one scene."""
+        dirs = _rays(direction, len(origins))
+        hit = self.world.scene.run(origins, dirs, output=1)
+        prim, t = hit["primID"], hit["tfar"]
+        a_depth, a_t = _first_hits(self.actors, origins, dirs)
+        static = (prim >= 0) & (prim < self.world.statics)
+        s_depth = np.append(self.static.depth, np.float32(0.0))[np.where(static, prim, self.world.statics)]
+        s_t = np.where(static, t, np.float32(np.inf))
+        unknown = np.flatnonzero((prim >= self.world.statics) & ~(a_t <= t))
+        if len(unknown):
+            s_depth[unknown], s_t[unknown] = _first_hits(self.static.along(origins[unknown], direction),
+                                                         origins[unknown], dirs[unknown])
+        return np.where(a_t < s_t, a_depth, s_depth)
+
+
+def _rays(direction: np.ndarray, n: int) -> np.ndarray:
+    """(n, 3) float32 copies of `direction`, as Embree's rays take them."""
+    return np.broadcast_to(direction.astype(np.float32), (n, 3)).copy()
+
+
+def _first_hits(occluders: Occluders, origins: np.ndarray, dirs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per ray, the shadow depth of the first of the triangles it meets and how far along the ray
+    (0 and infinity where it meets none)."""
+    if not len(occluders.faces):
+        return np.zeros(len(origins), np.float32), np.full(len(origins), np.inf, np.float32)
+    hit = occluders.scene().run(origins, dirs, output=1)
+    met = hit["primID"] >= 0
+    return (np.where(met, occluders.depth[np.maximum(hit["primID"], 0)], np.float32(0.0)),
+            np.where(met, hit["tfar"], np.float32(np.inf)))
+
+
 def _depths(parts: list[Part]) -> np.ndarray:
     """(F,) float32 shadow depth of each of the parts' faces: 1 - porosity ** 2."""
     return np.repeat([1.0 - p.material.porosity ** 2 for p in parts],
@@ -122,7 +193,7 @@ def _world_points(u: np.ndarray, v: np.ndarray, z: np.ndarray, K: np.ndarray,
     return (np.linalg.inv(cam2_from_world) @ cam)[:3].T
 
 
-def sun_shadow(occluders: Occluders, depth: np.ndarray, K: np.ndarray, cam2_from_world: np.ndarray,
+def sun_shadow(occluders: Occluders | SplitCasters, depth: np.ndarray, K: np.ndarray, cam2_from_world: np.ndarray,
                to_sun: np.ndarray, sunlit: np.ndarray | None = None) -> np.ndarray:
     """(H, W) float32 shadow depth in [0, 1] per pixel (0 = in sun), 0 where depth is 0 (sky).
     `sunlit` (H, W) bool, if given, limits the rays to pixels whose surface faces the sun (a
@@ -138,10 +209,7 @@ def sun_shadow(occluders: Occluders, depth: np.ndarray, K: np.ndarray, cam2_from
         return np.zeros((H, W), np.float32)
     points = _world_points(u[need], v[need], z[need], K, cam2_from_world)
     origins = (points + T_NEAR * to_sun).astype(np.float32)
-    occluders = occluders.along(origins, to_sun)
-    dirs = np.broadcast_to(to_sun.astype(np.float32), origins.shape).copy()
-    prim = occluders.scene().run(origins, dirs)
-    small[need] = np.where(prim >= 0, occluders.depth[np.maximum(prim, 0)], 0.0)
+    small[need] = occluders.shadow(origins, to_sun)
     small = cv2.GaussianBlur(small, (0, 0), SOFTEN)
     full = cv2.resize(small, (W, H), interpolation=cv2.INTER_LINEAR)
     return np.multiply(full, depth > 0, out=full)

@@ -55,6 +55,7 @@ class Target:
     velocity: np.ndarray  # (A, 3)
     yaw_rate: np.ndarray  # (A,)
     n_triangles: int
+    first_actor: int  # the static world's triangles come first: primID < first_actor
     first_moving: int  # moving actors' triangles come last: primID >= first_moving
 
 
@@ -205,6 +206,7 @@ def build_target(world: World, spec: LidarSpec) -> Target:
         velocity=np.array([np.asarray(a.velocity, float) for a in world.actors]).reshape(-1, 3),
         yaw_rate=np.array([float(a.yaw_rate) for a in world.actors]),
         n_triangles=sum(counts),
+        first_actor=sum(counts[:len(world.static)]),
         first_moving=first_moving,
     )
 

@@ -10,8 +10,8 @@ from simgen import facets
 from simgen.embree import EMBREE_CONFIG, embree_scene
 from simgen.materials import ASPHALT, FOLIAGE
 from simgen.meshes import box
-from simgen.shadows import (SKY_RAYS, SKY_STEP, SOFTEN, STEP, Occluders, Reach,
-                            sky_directions, sky_occlusion, sun_shadow)
+from simgen.shadows import (SKY_RAYS, SKY_STEP, SOFTEN, STEP, Occluders, Reach, SplitCasters,
+                            WorldScene, sky_directions, sky_occlusion, sun_shadow)
 from simgen.world import Material, Part
 
 F, N = 100.0, 101  # a 101 x 101 camera 20 m above the ground, looking straight down
@@ -58,6 +58,23 @@ def test_no_shadow_with_the_sun_below_the_horizon_or_only_where_asked():
     assert not sun_shadow(world, depth_img, K, CAM2_FROM_WORLD, np.array([1.0, 0.0, -0.1])).any()
     sunlit = np.zeros((N, N), bool)  # no pixel faces the sun: no ray is cast
     assert not sun_shadow(world, depth_img, K, CAM2_FROM_WORLD, np.array([0.0, 0.0, 1.0]), sunlit).any()
+
+
+def test_the_lidars_scene_of_the_world_casts_the_same_shadows():
+    """The static world from another sensor's scene, whose actors stand elsewhere (a box moved
+    1.5 m: rays that meet it there and not here find the ground behind it), and the camera's
+    actors from their own: bit for bit the shadow of one scene of both."""
+    depth_img = np.full((N, N), 20.0, np.float32)
+    to_sun = np.array([1.0, 0.3, 1.2]) / np.linalg.norm([1.0, 0.3, 1.2])
+    static = _casters(FOLIAGE)  # the ground and a crown
+    actor = [Part(box(-6, -4, 1, 3, 1, 2.5), Material("slab", (0.5, 0.5, 0.5), 0.3))]
+    actors = Occluders.of_mesh(actor, *facets.shared(actor))
+    elsewhere = Occluders(actors.vertices + np.float32([1.5, 0.0, 0.0]), actors.faces, actors.depth)
+    world = Occluders.join(static, elsewhere)
+    split = SplitCasters(WorldScene(world.scene(), len(static.faces)), static, actors)
+    one = sun_shadow(Occluders.join(static, actors), depth_img, K, CAM2_FROM_WORLD, to_sun)
+    assert one.any()
+    assert np.array_equal(sun_shadow(split, depth_img, K, CAM2_FROM_WORLD, to_sun), one)
 
 
 def _corner_factor(a: float, b: float, c: float) -> float:
