@@ -4,7 +4,9 @@ Actors stand on the road or the sidewalk (curb height above it; on a road with a
 profile, both rise and fall with it: `simgen.relief`), face along their lane with a
 small spread, and never overlap each other, the ego vehicle or static obstacles (footprints
 tested as oriented rectangles with a safety margin; tree crowns only against actors tall enough
-to reach them). With `clutter.frontage`, cars also stand in car-park stalls (paved at curb
+to reach them). Parked rows line the kerbs that have a parking strip, bays nose to tail, and
+a queue of standing vehicles may wait in the lane beside the ego's (`_Traffic.parked`,
+`_Traffic.queue`). With `clutter.frontage`, cars also stand in car-park stalls (paved at curb
 height, across the road), and side streets keep their mouths free of parked cars and walkers.
 """
 
@@ -30,6 +32,22 @@ VERGE_REACH = 60.0  # cross-street traffic runs from -60 to 60 m across the main
 # Parked vehicles (curbs and car parks): one Van to ten Cars, as in KITTI's training labels (2,914
 # Vans, 28,742 Cars; the sizes of each class come from the same labels: simgen.meshes.SIZE_STATS).
 PARKED_MIX = {"Car": 0.908, "Van": 0.092}
+# Parked rows (_Traffic.parked). Gaps between parked vehicles: about 1 m front and back usually
+# suffices, courts accepted 0.8 m in front and 0.5 m behind (commentary on StVO section 12, Bouska);
+# 0.8 m is the gap the Berlin OSM kerb-parking survey assumes. No parking within 5 m of the
+# crossing of the carriageways' edges at junctions (StVO section 12(3) no. 1). Distance from the
+# kerb: StVO section 12(4) asks for the carriageway's right edge and names none; 0.05-0.30 m is a
+# judgement. Parked vehicles keep 0.2 m of free space around their footprints, so gaps of 0.5 m fit.
+PARKED_GAP = (0.5, 1.0)
+CORNER_CLEAR = 5.0
+KERB_GAP = (0.05, 0.30)
+PARKED_MARGIN = 0.2
+# Standing queues (_Traffic.queue): the standstill gap of car following, 2 m in the Intelligent
+# Driver Model (Treiber, Hennecke and Helbing, Phys. Rev. E 62, 2000), drawn 1-3 m. Where a queue
+# begins (20 m behind the LiDAR to 5 m ahead) and how far it reaches (15-60 m): a judgement.
+QUEUE_GAP = (1.0, 3.0)
+QUEUE_START = (-20.0, 5.0)
+QUEUE_LENGTH = (15.0, 60.0)
 # KITTI's VW Passat around its LiDAR (x -2.9 to 1.3 m), plus 5 m of free lane ahead of its bumper.
 EGO_FREE_AHEAD = 6.3  # where that free lane ends, m ahead of the LiDAR
 EGO_FOOTPRINT = shapely.box(-2.9, -1.0, EGO_FREE_AHEAD, 1.0)
@@ -70,9 +88,9 @@ class _Placer:
         self.bases = np.array([o.base for o in obstacles], float)
         self.taken = list(reserved)
 
-    def try_place(self, pose: np.ndarray, recipe: dict) -> bool:
+    def try_place(self, pose: np.ndarray, recipe: dict, margin: float = MARGIN) -> bool:
         h, w, l = recipe["dims"]
-        fp = _footprint(pose, l, w)
+        fp = _footprint(pose, l, w, margin)
         shapely.prepare(fp)
         if self.taken and shapely.intersects(fp, self.taken).any():
             return False
@@ -116,7 +134,7 @@ def _road_layout(spec: SceneSpec, v: dict) -> RoadLayout:
         lanes=lanes, lane_width=float(v["road.lane_width"]),
         ego_lane=min(int(v["road.ego_lane"]), lanes - 1),
         sidewalk_width=float(v["road.sidewalk_width"]), curb_height=float(v["road.curb_height"]),
-        parking=float(v["traffic.parked_per_100m"]) > 0, parking_sides=str(v["road.parking_sides"]),
+        parking=float(v["traffic.parking_occupancy"]) > 0, parking_sides=str(v["road.parking_sides"]),
         s_min=-spec.road.length_behind,
         s_max=max(spec.road.length_ahead, float(v["traffic.max_distance"]) + 20.0),
         cross_s=float(v["road.intersection_distance"]) if kind == "intersection" else None,
@@ -193,9 +211,9 @@ class _Traffic:
         return []
 
     def add(self, cls: str, recipe: dict, pose: np.ndarray, vel: float = 0.0,
-            yaw_rate: float = 0.0) -> None:
-        """Adds the actor unless its footprint collides; ids stay consecutive."""
-        if not self.placer.try_place(pose, recipe):
+            yaw_rate: float = 0.0, margin: float = MARGIN) -> None:
+        """Adds the actor unless its footprint, grown by `margin`, collides; ids stay consecutive."""
+        if not self.placer.try_place(pose, recipe, margin):
             return
         heading = pose[:3, 0]
         self.actors.append(Actor(len(self.actors) + 1, cls, build_actor_parts(recipe), pose,
@@ -261,25 +279,54 @@ class _Traffic:
                     self.add(cls, recipe, T, self.speed * rng.uniform(0.8, 1.2))
                     y += recipe["dims"][2] + 2.0 + rng.exponential(100.0 / dens)
 
-    def parked(self, dens: float) -> None:
-        """Parked cars in the parking strips, nose along the traffic on their side."""
+    def queue(self, share: float) -> None:
+        """With probability `share`, a queue of standing vehicles nose to tail in the lane beside
+        the ego's: the next lane of its own direction where there is one, else the oncoming lane
+        next to the divider. It stops short of a cross street. No draw at share 0."""
+        if not (share > 0 and self.spec.rig.type == "onboard" and self.spec.traffic.mix):
+            return
         road, rng = self.road, self.rng
-        if not dens > 0:
+        if rng.uniform() >= share:
+            return
+        oncoming = road.ego_lane + 1 >= road.lanes
+        if oncoming and not self.spec.traffic.oncoming:
+            return
+        lane = road.lanes - 1 if oncoming else road.ego_lane + 1
+        s = rng.uniform(*QUEUE_START)
+        end = s + rng.uniform(*QUEUE_LENGTH)
+        while s < min(end, self.s_hi):
+            cls = _pick_class(self.spec.traffic.mix, rng)
+            recipe = _recipe(cls, self.spec, rng)
+            l = recipe["dims"][2]
+            d = road.lane_centre(lane, oncoming) + float(np.clip(rng.normal(0, self.sd_lat), -0.4, 0.4))
+            if road.in_cross_street(s + l / 2, l / 2 + 2.0):
+                break
+            yaw = (np.pi if oncoming else 0.0) + rng.normal(0, self.sd_yaw)
+            self.add(cls, recipe, road.pose(s + l / 2, d, 0.0, yaw))
+            s += l + rng.uniform(*QUEUE_GAP)
+
+    def parked(self, occupancy: float) -> None:
+        """Parked rows in the parking strips: bays nose to tail along each strip, each a vehicle's
+        length and a gap (PARKED_GAP), each taken with probability `occupancy`; the vehicle
+        within KERB_GAP of the kerb, its nose along the traffic on its side. Corners and side
+        streets' mouths stay free (CORNER_CLEAR)."""
+        road, rng = self.road, self.rng
+        if not occupancy > 0:
             return
         for side in [k for k in (-1, 1) if road.parks(k)]:
-            s = self.s_lo + rng.exponential(100.0 / dens)
+            s = self.s_lo - rng.uniform(0.0, 5.0)  # the row's phase
             while s < self.s_hi:
                 cls = _pick_class(PARKED_MIX, rng)
                 recipe = _recipe(cls, self.spec, rng)
-                if road.in_cross_street(s, recipe["dims"][2] / 2 + 3.0) or self._in_mouth(
-                        side, s, recipe["dims"][2] / 2 + 1.0):  # keep the corners free
-                    s += recipe["dims"][2] + 0.8 + rng.exponential(100.0 / dens)
-                    continue
-                w = recipe["dims"][1]
-                d = (road.right_curb + w / 2 + 0.25) if side < 0 else (road.left_curb - w / 2 - 0.25)
+                _, w, l = recipe["dims"]
+                taken, kerb = rng.uniform() < occupancy, rng.uniform(*KERB_GAP)
                 yaw = (0.0 if side < 0 else np.pi) + rng.normal(0, self.sd_yaw)
-                self.add(cls, recipe, road.pose(s, d, 0.0, yaw))
-                s += recipe["dims"][2] + 0.8 + rng.exponential(100.0 / dens)
+                mid = s + l / 2
+                if taken and not (road.in_cross_street(mid, l / 2 + CORNER_CLEAR)
+                                  or self._in_mouth(side, mid, l / 2 + CORNER_CLEAR)):
+                    d = (road.right_curb + w / 2 + kerb) if side < 0 else (road.left_curb - w / 2 - kerb)
+                    self.add(cls, recipe, road.pose(mid, d, 0.0, yaw), margin=PARKED_MARGIN)
+                s += l + rng.uniform(*PARKED_GAP)
 
     def _in_mouth(self, side: int, s: float, margin: float) -> bool:
         return self.frontage is not None and self.frontage.in_mouth(side, s, margin)
@@ -333,9 +380,10 @@ def _place_actors(spec: SceneSpec, v: dict, road: RoadLayout, obstacles: list[Ob
     traffic = _Traffic(spec, v, road, obstacles, rng, frontage)
     traffic.lead(float(v["traffic.lead_vehicle"]), float(v["traffic.headway_s"]),
                  float(v.get("rig.ego_speed", 0.0)))
+    traffic.queue(float(v["traffic.queue"]))
     traffic.moving(float(v["traffic.vehicles_per_100m"]))
     traffic.crossing(float(v["traffic.vehicles_per_100m"]))
-    traffic.parked(float(v["traffic.parked_per_100m"]))
+    traffic.parked(float(v["traffic.parking_occupancy"]))
     traffic.pedestrians(float(v["traffic.pedestrians_per_100m"]))
     traffic.cyclists(float(v["traffic.cyclists_per_100m"]))
     traffic.car_parks(float(v["traffic.car_park_occupancy"]))

@@ -56,7 +56,7 @@ class RoadSpec(Strict):
     cross_lanes_per_direction: factor(int, 1, 3) = 1  # on the cross street
     ego_lane: factor(int, 0, 3) = 0  # counted from the right curb, clipped to the lanes present
     sidewalk_width: factor(float, 1.0, 8.0) = 3.0
-    # The curbs lined by a parking strip (simgen.road.PARKING_WIDTH) when traffic.parked_per_100m
+    # The curbs lined by a parking strip (simgen.road.PARKING_WIDTH) when traffic.parking_occupancy
     # is above 0: both, the right one (the ego's side), the left one, or none.
     parking_sides: factor(str, options=("both", "right", "left", "none")) = "both"
     curb_height: factor(float, 0.0, 0.3) = 0.15
@@ -82,9 +82,14 @@ class TrafficSpec(Strict):
     # so about 3 % of all vehicles, KITTI's share: 1,094 of 32,750).
     mix: dict[str, float] = Field(
         default_factory=lambda: {"Car": 0.835, "Van": 0.085, "Truck": 0.08})
-    # Per curb: the rate of the exponential gaps between parked cars, so the cars stand on
-    # average (car length + 0.8 m + 100 / rate) apart: rate 8 -> 5.7 cars per 100 m, 25 -> 11.
-    parked_per_100m: factor(float, 0.0, 100.0) = 6.0
+    # The share of a parking strip's bays taken (simgen.sample._Traffic.parked): the strip is laid
+    # out as bays nose to tail, each a vehicle's length plus a gap, and each holds a parked vehicle
+    # with this probability. German kerbside surveys find 67-96 % taken in residential streets.
+    parking_occupancy: factor(float, 0.0, 1.0) = 0.3
+    # The probability of a queue of standing vehicles in the lane beside the ego's (the next lane
+    # of its own direction where there is one, else the oncoming lane): traffic held at a light or
+    # in a jam (simgen.sample._Traffic.queue).
+    queue: factor(float, 0.0, 1.0) = 0.0
     pedestrians_per_100m: factor(float, 0.0, 50.0) = 3.0  # per sidewalk
     cyclists_per_100m: factor(float, 0.0, 20.0) = 0.5  # per direction
     max_distance: factor(float, 10.0, 400.0) = 120.0  # along the road, ahead of the sensor

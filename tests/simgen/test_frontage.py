@@ -35,7 +35,7 @@ def _spec(frontage: dict, **clutter) -> SceneSpec:
     """A straight street with parked cars, pedestrians, side streets and the given lots."""
     return spec_from_dict({
         "name": "f", "road": {"type": "straight", "lanes_per_direction": 1, "length_behind": 60},
-        "traffic": {"parked_per_100m": 20, "pedestrians_per_100m": 15, "car_park_occupancy": 1.0},
+        "traffic": {"parking_occupancy": 0.5, "pedestrians_per_100m": 15, "car_park_occupancy": 1.0},
         "clutter": {"frontage": frontage, "side_streets_per_100m": 1.5, "trees_per_100m": 8,
                     **clutter}})
 
@@ -232,7 +232,7 @@ def test_parking_sides_put_a_strip_and_parked_cars_only_where_named(sides):
     stand at their lane's edge, and every parked car stands in a strip."""
     world = sample_world(spec_from_dict({
         "name": "p", "road": {"type": "straight", "lanes_per_direction": 1, "parking_sides": sides},
-        "traffic": {"parked_per_100m": 20, "vehicles_per_100m": 0.0}}), 4, 0)
+        "traffic": {"parking_occupancy": 0.5, "vehicles_per_100m": 0.0}}), 4, 0)
     road = RoadLayout(**world.scenery["road"])
     right, left = sides == "right", sides == "left"
     assert road.right_curb == pytest.approx(road.right_lane_edge - PARKING_WIDTH * right, abs=1e-12)
@@ -247,7 +247,7 @@ def test_parking_sides_put_a_strip_and_parked_cars_only_where_named(sides):
 
 
 def test_both_parking_strips_keep_the_road_dict_of_before():
-    world = sample_world(spec_from_dict({"name": "b", "traffic": {"parked_per_100m": 5}}), 1, 0)
+    world = sample_world(spec_from_dict({"name": "b", "traffic": {"parking_occupancy": 0.2}}), 1, 0)
     assert "parking_sides" not in world.scenery["road"] and world.scenery["road"]["parking"]
     road = RoadLayout(**world.scenery["road"])
     assert road.right_curb == road.right_lane_edge - PARKING_WIDTH

@@ -34,7 +34,7 @@ ROADS = {"straight": {"type": "straight"}, "curved": {"type": "curved", "curvatu
 def _world(road: str, frontage: dict | None = None, seed: int = 2, **traffic):
     spec = spec_from_dict({
         "name": "f", "road": {**ROADS[road], "sidewalk_width": 3.0},
-        "traffic": {"parked_per_100m": 15, "pedestrians_per_100m": 20, **traffic},
+        "traffic": {"parking_occupancy": 0.4, "pedestrians_per_100m": 20, **traffic},
         "clutter": {"furniture": 3.0, "frontage": frontage or {}, "side_streets_per_100m": 1.0}})
     return sample_world(spec, seed, 0)
 

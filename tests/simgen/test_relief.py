@@ -116,7 +116,7 @@ def test_road_surface_under_a_graded_world_is_where_the_camera_sees_it():
     spec = load_spec(ROOT / "scenes/golden/street.yaml")
     d = spec.model_dump()
     d["road"].update(grade_ahead=-0.05, vertical_k=10.0, vertical_start=5.0)
-    d["traffic"].update(vehicles_per_100m=0.0, parked_per_100m=0.0, pedestrians_per_100m=0.0,
+    d["traffic"].update(vehicles_per_100m=0.0, parking_occupancy=0.0, pedestrians_per_100m=0.0,
                         cyclists_per_100m=0.0)
     world = sample_world(type(spec).model_validate(d), 0, 0)
     road = RoadLayout(**world.scenery["road"])
@@ -144,7 +144,7 @@ def test_the_camera_sees_the_far_side_of_a_crowned_road_fall_away():
     spec = load_spec(ROOT / "scenes/golden/street.yaml")
     d = spec.model_dump()
     d["road"].update(crown=0.025)
-    d["traffic"].update(vehicles_per_100m=0.0, parked_per_100m=0.0, pedestrians_per_100m=0.0,
+    d["traffic"].update(vehicles_per_100m=0.0, parking_occupancy=0.0, pedestrians_per_100m=0.0,
                         cyclists_per_100m=0.0)
     world = sample_world(type(spec).model_validate(d), 0, 0)
     road = RoadLayout(**world.scenery["road"])

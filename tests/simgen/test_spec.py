@@ -91,8 +91,8 @@ def test_sampled_worlds_are_deterministic_and_collision_free():
     from simgen.sample import EGO_FOOTPRINT, _footprint
 
     spec = load_spec(Path(__file__).resolve().parents[2] / "scenes/urban.yaml")
-    w1, w2 = sample_world(spec, 5, 2), sample_world(spec, 5, 2)
-    assert len(w1.actors) == len(w2.actors) > 10
+    w1, w2 = sample_world(spec, 5, 5), sample_world(spec, 5, 5)  # parked rows along both kerbs
+    assert len(w1.actors) == len(w2.actors) > 40
     for a, b in zip(w1.actors, w2.actors):
         assert a.recipe == b.recipe and np.array_equal(a.pose, b.pose)
     fps = [_footprint(a.pose, a.recipe["dims"][2], a.recipe["dims"][1], 0.0) for a in w1.actors]

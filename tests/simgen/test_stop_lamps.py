@@ -19,7 +19,7 @@ def _spec(**traffic):
         "name": "brake", "road": {"type": "straight", "lanes_per_direction": 2, "ego_lane": 1},
         "rig": {"type": "onboard", "ego_speed": 8.0},
         "light": {"time": "day", "sun_elevation_deg": 40.0, "sun_azimuth_deg": 150.0},
-        "traffic": {"vehicles_per_100m": 3.0, "parked_per_100m": 10.0, **traffic}})
+        "traffic": {"vehicles_per_100m": 3.0, "parking_occupancy": 0.3, **traffic}})
 
 
 def _moving_vehicle(actor) -> bool:
