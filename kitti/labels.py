@@ -64,7 +64,13 @@ class Object3D:
                  f"{x:.4f}", f"{y:.4f}", f"{z:.4f}", f"{self.rotation_y:.4f}"]
         if self.score is not None:
             parts.append(f"{self.score:.6f}")
-        return " ".join(p.replace("-0.0000", "0.0000").replace("-0.00", "0.00") for p in parts)
+        return " ".join(_unsigned_zero(p) for p in parts)
+
+
+def _unsigned_zero(tok: str) -> str:
+    """A value that rounds to zero is written without a sign ("-0.0000" -> "0.0000"); every other
+    negative value keeps its sign, however small."""
+    return tok[1:] if tok.startswith("-") and float(tok) == 0.0 else tok
 
 
 def _float(tok: str, name: str, path, lineno) -> float:

@@ -37,6 +37,14 @@ def test_label_line_fields():
     assert o.to_line() == CAR
 
 
+def test_small_negative_values_keep_their_sign_and_negative_zero_loses_it():
+    o = Object3D("Car", 0.0, 0, -0.0049, [1, 2, 3, 4], 1.5, 1.6, 3.9, [-0.0051, -0.00004, 20.0], -0.009)
+    fields = o.to_line().split()
+    assert fields[3] == "-0.0049" and fields[11:13] == ["-0.0051", "0.0000"] and fields[14] == "-0.0090"
+    back = parse_label_line(o.to_line())
+    assert back.location[0] == -0.0051 and back.rotation_y == -0.009
+
+
 def test_label_round_trip_with_scores_and_dontcare(tmp_path):
     rng = np.random.default_rng(1)
     objs = [Object3D("Pedestrian", 0.25, 1, 0.3, [1.5, 2.25, 30.125, 80.5], 1.76, 0.66, 0.84,
