@@ -103,7 +103,8 @@ def side_misfit(boxes7: np.ndarray, P: np.ndarray, bbox: np.ndarray, width: int,
 @numba.njit(cache=True, nogil=True)
 def _faces(pxz: np.ndarray, pu: np.ndarray, ph: np.ndarray, e: np.ndarray, e_other: np.ndarray,
            size: float, other: float, grow: float, sensor_xz: np.ndarray, bbox: np.ndarray,
-           width: int, h: float, car: bool, end: bool) -> tuple[float, float, float, float]:
+           width: int, h: float, car: bool, end: bool,
+           body_top: float, measure: bool) -> tuple[float, float, float, float]:
     """The centre coordinate along axis e implied by the faces the returns show.
 
     The extreme of the returns facing the sensor is a face when the returns beside it spread
@@ -111,8 +112,9 @@ def _faces(pxz: np.ndarray, pu: np.ndarray, ph: np.ndarray, e: np.ndarray, e_oth
     end of a face seen edge-on). The far extreme is trusted only in the second case (far roof or
     bonnet returns are no face). An extreme that touches a box side at the image border is cut
     there, and one that ends inside the box without showing its face is cut by an occluder:
-    neither is used. When both ends are shown, their distance is the size (within SHRINK below
-    and `grow` above the prior). A car's near face whose lowest return lies above its bumpers
+    neither is used. When both ends are shown, the returns' extremes lower than `body_top` above
+    the road (all of them where fewer than two are) centre the box and, if `measure`, their
+    distance is the size (within SHRINK below and `grow` above the prior). A car's near face whose lowest return lies above its bumpers
     (ph: heights above the road, h the car's height; `end`: e is its heading, whose + end is the
     front) is its bonnet's or glasshouse's: the box's face lies the set-in of OUTLINE_* at that
     height nearer, known to SIGMA_OUTLINE (vans and trucks have other outlines: none is taken).
@@ -180,9 +182,10 @@ def _faces(pxz: np.ndarray, pu: np.ndarray, ph: np.ndarray, e: np.ndarray, e_oth
             return (near_face + near_sign * (size / 2 - setin),
                     SIGMA_FACE / SIGMA_OUTLINE[0 if end else 1], size, near_sign)
     if ok_near and ok_far:  # both ends shown: the returns measure the size too
-        measured = p.max() - p.min()
+        p_lo, p_hi = _span_below(p, ph, body_top)
+        measured = p_hi - p_lo
         if (1 - SHRINK) * size <= measured <= size + grow:
-            return 0.5 * (p.min() + p.max()), 1.0, measured, 0.0
+            return 0.5 * (p_lo + p_hi), 1.0, measured if measure else size, 0.0
         return near_face + near_sign * size / 2, 1.0, size, near_sign
     if ok_near:
         return near_face + near_sign * size / 2, 1.0, size, near_sign
@@ -191,6 +194,19 @@ def _faces(pxz: np.ndarray, pu: np.ndarray, ph: np.ndarray, e: np.ndarray, e_oth
     # no face confirmed: returns lie on the surfaces facing the sensor, so the likeliest centre is
     # still half a size beyond the near extreme; a weak row
     return near_face + near_sign * size / 2, WEAK_FACE, size, near_sign
+
+
+@numba.njit(cache=True, nogil=True)
+def _span_below(p: np.ndarray, ph: np.ndarray, top: float) -> tuple[float, float]:
+    """The extremes of p over the returns lower than `top` (ph: their heights), or over all of
+    them where fewer than two are."""
+    lo, hi, n = np.inf, -np.inf, 0
+    for j in range(len(p)):
+        if ph[j] < top:
+            lo, hi, n = min(lo, p[j]), max(hi, p[j]), n + 1
+    if n < 2:
+        return p.min(), p.max()
+    return lo, hi
 
 
 @numba.njit(cache=True, nogil=True)
@@ -211,8 +227,9 @@ def _wls2(A: np.ndarray, b: np.ndarray, w: np.ndarray) -> tuple[float, float]:
 @numba.njit(cache=True, nogil=True)
 def translation(pxz: np.ndarray, pu: np.ndarray, ph: np.ndarray, h: float, w: float, l: float,
                 ry: float, bbox: np.ndarray, sensor_xz: np.ndarray, start_xz: np.ndarray,
-                P: np.ndarray, width: int, plane: np.ndarray, car: bool,
-                up: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, np.ndarray]:
+                P: np.ndarray, width: int, plane: np.ndarray, car: bool, up: np.ndarray,
+                body_top: float = np.inf,
+                measure_w: bool = True) -> tuple[np.ndarray, np.ndarray, int, np.ndarray]:
     """Bottom-centre (x, y, z) by weighted least squares on faces, 2D sides and the road plane,
     the size (h, w, l) with l and w measured where the returns show both ends, how many of the two
     axes a confirmed face pins down, and the (x, z) direction the centre moves per metre of length
@@ -220,7 +237,8 @@ def translation(pxz: np.ndarray, pu: np.ndarray, ph: np.ndarray, h: float, w: fl
 
     pxz, pu, ph: the object's returns (bird's-eye), their image columns and heights above the
     road; start_xz: where the centroid pull starts; car: its outline is a car's, set in above the
-    bumpers (`_faces`)."""
+    bumpers (`_faces`); body_top, measure_w: where both sides show, the returns lower than
+    body_top centre the box and, if measure_w, measure its width (`_faces`)."""
     ea = np.array([np.cos(ry), -np.sin(ry)])  # heading in (x, z)
     eb = np.array([np.sin(ry), np.cos(ry)])   # lateral
     ray = start_xz - sensor_xz
@@ -235,7 +253,9 @@ def translation(pxz: np.ndarray, pu: np.ndarray, ph: np.ndarray, h: float, w: fl
         e, eo = (ea, eb) if k == 0 else (eb, ea)
         size, other, grow = (l, w, MAX_GROW_L) if k == 0 else (w, l, MAX_GROW_W)
         centre, weight, sizes[k], sl = _faces(pxz, pu, ph, e, eo, size, other, grow, sensor_xz,
-                                              bbox, width, h, car, k == 0)
+                                              bbox, width, h, car, k == 0,
+                                              np.inf if k == 0 else body_top,
+                                              k == 0 or measure_w)
         if k == 0:
             slide = 0.5 * sl * e
         pinned += weight == 1.0
