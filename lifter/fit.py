@@ -35,8 +35,9 @@ under CLAIM_MIN_SCORE after the others):
    labels), its top edge then fixes the height exactly;
 6. fewer than MIN_POINTS returns: the image-only solution constrained to the road plane;
 7. score = 2D score x a quality from the number of returns, the faces that pin the box, the
-   winning yaw's cost and the share of the box the image shows (`visible_share`); an image-only box (step 6) is trusted as `mono`'s is, less with distance
-   (d^2 / (f H) metres of depth per pixel of its bottom edge).
+   winning yaw's cost and the share of the box the image shows (`visible_share`); an image-only
+   box (step 6) is trusted as `mono`'s is, less with distance (d^2 / (f H) metres of depth per
+   pixel of its bottom edge).
 
 Step 2 is `clusters.object_returns`, steps 4-5 are `placement`'s kernels.
 """

@@ -114,7 +114,8 @@ def _faces(pxz: np.ndarray, pu: np.ndarray, ph: np.ndarray, e: np.ndarray, e_oth
     there, and one that ends inside the box without showing its face is cut by an occluder:
     neither is used. When both ends are shown, the returns' extremes lower than `body_top` above
     the road (all of them where fewer than two are) centre the box and, if `measure`, their
-    distance is the size (within SHRINK below and `grow` above the prior). A car's near face whose lowest return lies above its bumpers
+    distance is the size (within SHRINK below and `grow` above the prior). A car's near face
+    whose lowest return lies above its bumpers
     (ph: heights above the road, h the car's height; `end`: e is its heading, whose + end is the
     front) is its bonnet's or glasshouse's: the box's face lies the set-in of OUTLINE_* at that
     height nearer, known to SIGMA_OUTLINE (vans and trucks have other outlines: none is taken).
