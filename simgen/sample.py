@@ -309,7 +309,8 @@ class _Traffic:
         """Parked rows in the parking strips: bays nose to tail along each strip, each a vehicle's
         length and a gap (PARKED_GAP), each taken with probability `occupancy`; the vehicle
         within KERB_GAP of the kerb, its nose along the traffic on its side. Corners and side
-        streets' mouths stay free (CORNER_CLEAR)."""
+        streets' mouths stay free (CORNER_CLEAR), and so do the drives and car-park entrances,
+        which the scenery lays down as obstacles (simgen.scenery.lots._drive_mouth)."""
         road, rng = self.road, self.rng
         if not occupancy > 0:
             return

@@ -62,6 +62,17 @@ def _quad_polygon(road: RoadLayout, s0: float, s1: float, d0: float, d1: float) 
     return shapely.Polygon(np.concatenate([road.xy(ss, d0), road.xy(ss[::-1], d1)]))
 
 
+def _drive_mouth(road: RoadLayout, side: int, s0: float, s1: float, out: _Meshes) -> None:
+    """Keeps the parking strip in front of a drive or a car park's entrance [s0, s1] free of
+    parked vehicles (StVO section 12(3) no. 3: no parking in front of a property's way in or
+    out): a footprint over the strip, from the kerb to the lane's edge, that actors may not
+    overlap and nothing is drawn on."""
+    if road.parks(side):
+        d0, d1 = ((road.right_curb, road.right_lane_edge) if side < 0
+                  else (road.left_lane_edge, road.left_curb))
+        out.obstacles.append(Obstacle(_quad_polygon(road, s0, s1, d0, d1)))
+
+
 def _add_building(out: _Meshes, rng: np.random.Generator, m: Shape) -> None:
     fp = footprint(m)
     if out.blocked(fp):
@@ -183,6 +194,7 @@ def _house_row(road: RoadLayout, side: int, s0: float, s1: float, q: float,
             kind = BOUNDARIES[int(rng.integers(len(BOUNDARIES)))]
             _boundary(road, side, s, gap, kind, rng, out)
             _boundary(road, side, gap + DRIVE_GAP, s + plot, kind, rng, out)
+            _drive_mouth(road, side, gap, gap + DRIVE_GAP, out)
             # the side boundary (to the previous plot) and the rear one, behind the garden
             h, t, mat = _boundary_style(BOUNDARIES[int(rng.integers(len(BOUNDARIES) - 1))], rng)
             rear = q + depth + rng.uniform(*BACK_GARDEN)
@@ -338,6 +350,8 @@ def _lot(road: RoadLayout, lot: Lot, setback: float, rng: np.random.Generator, o
             _trees(out, road.xy(ss, d), ch, uniform(SMALL_TREE_HEIGHT, u[:, 0]),
                    uniform(SMALL_CROWN_RADIUS, u[:, 1]), CLEAR_FOOTWAY, 0.15)
         _boundary(road, side, s0 + 3.0, s1 - 3.0, rng.choice(["hedge", "none"]), rng, out)
+        for a in (s0, s1 - 3.0):  # the aisles open to the street at both ends
+            _drive_mouth(road, side, a, a + 3.0, out)
         q = lot.depth + rng.uniform(3.0, 10.0)
         length = (s1 - s0) * rng.uniform(0.4, 0.9)
         at = s0 + rng.uniform(0.0, s1 - s0 - length)

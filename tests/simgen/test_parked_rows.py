@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 
 from simgen.road import PARKING_WIDTH
-from simgen.sample import CORNER_CLEAR, KERB_GAP, PARKED_GAP, QUEUE_GAP, sample_world
+from simgen.sample import CORNER_CLEAR, KERB_GAP, PARKED_GAP, PARKED_MARGIN, QUEUE_GAP, sample_world
+from simgen.scenery import build_scenery
+from simgen.scenery.frontage import DRIVE_GAP
 from simgen.spec import spec_from_dict
 
 
@@ -66,6 +68,33 @@ def test_the_corners_of_a_junction_stay_free():
             for a in _row(world, side):
                 l = a.recipe["dims"][2]
                 assert abs(a.pose[0, 3] - 40.0) - l / 2 >= half + CORNER_CLEAR - 1e-9
+
+
+@pytest.mark.parametrize("lots", ["houses", "car_park"])
+def test_the_drives_and_car_park_entrances_stay_free(lots):
+    """Each house's drive and each car park's two entrances leave the strip in front of them
+    empty (StVO section 12(3) no. 3): every mouth is DRIVE_GAP long, lies between the kerb and
+    the lane's edge, and no parked vehicle (grown by its placing margin) reaches into it."""
+    spec = _spec(parking_occupancy=1.0)
+    spec = spec.model_copy(update={"clutter": spec.clutter.model_copy(update={"frontage": {lots: 1.0}, "buildings": True})})
+    lane, curb = 1.5, 1.5 + PARKING_WIDTH  # |y| of the lane's edge and of the kerb, right side
+    checked = 0
+    for frame in range(2):
+        world = sample_world(spec, 7, frame)
+        _, obstacles = build_scenery(world.scenery)
+        for side in (-1, 1):
+            edge, kerb = (-lane, -curb) if side < 0 else (lane + 3.0, curb + 3.0)  # left: past the oncoming lane
+            mouths = [o.polygon.bounds for o in obstacles
+                      if np.isclose(o.polygon.bounds[1], min(edge, kerb)) and np.isclose(o.polygon.bounds[3], max(edge, kerb))]
+            row = [a for a in _row(world, side) if abs(a.pose[1, 3] - (edge + kerb) / 2) < PARKING_WIDTH / 2]
+            assert mouths and len(row) > 10
+            for x0, _, x1, _ in mouths:
+                assert x1 - x0 == pytest.approx(DRIVE_GAP, abs=1e-9)
+                for a in row:
+                    reach = a.recipe["dims"][2] / 2 + PARKED_MARGIN
+                    assert a.pose[0, 3] + reach <= x0 + 1e-9 or a.pose[0, 3] - reach >= x1 - 1e-9
+            checked += len(mouths)
+    assert checked >= 4
 
 
 def test_a_queue_stands_in_the_oncoming_lane_nose_to_tail_at_standstill_gaps():
