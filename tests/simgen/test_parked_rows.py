@@ -76,7 +76,8 @@ def test_the_drives_and_car_park_entrances_stay_free(lots):
     empty (StVO section 12(3) no. 3): every mouth is DRIVE_GAP long, lies between the kerb and
     the lane's edge, and no parked vehicle (grown by its placing margin) reaches into it."""
     spec = _spec(parking_occupancy=1.0)
-    spec = spec.model_copy(update={"clutter": spec.clutter.model_copy(update={"frontage": {lots: 1.0}, "buildings": True})})
+    clutter = spec.clutter.model_copy(update={"frontage": {lots: 1.0}, "buildings": True})
+    spec = spec.model_copy(update={"clutter": clutter})
     lane, curb = 1.5, 1.5 + PARKING_WIDTH  # |y| of the lane's edge and of the kerb, right side
     checked = 0
     for frame in range(2):
@@ -84,9 +85,10 @@ def test_the_drives_and_car_park_entrances_stay_free(lots):
         _, obstacles = build_scenery(world.scenery)
         for side in (-1, 1):
             edge, kerb = (-lane, -curb) if side < 0 else (lane + 3.0, curb + 3.0)  # left: past the oncoming lane
+            lo, hi = min(edge, kerb), max(edge, kerb)
             mouths = [o.polygon.bounds for o in obstacles
-                      if np.isclose(o.polygon.bounds[1], min(edge, kerb)) and np.isclose(o.polygon.bounds[3], max(edge, kerb))]
-            row = [a for a in _row(world, side) if abs(a.pose[1, 3] - (edge + kerb) / 2) < PARKING_WIDTH / 2]
+                      if np.isclose(o.polygon.bounds[1], lo) and np.isclose(o.polygon.bounds[3], hi)]
+            row = [a for a in _row(world, side) if lo < a.pose[1, 3] < hi]  # the strip's, not the lots'
             assert mouths and len(row) > 10
             for x0, _, x1, _ in mouths:
                 assert x1 - x0 == pytest.approx(DRIVE_GAP, abs=1e-9)
