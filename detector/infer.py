@@ -85,14 +85,17 @@ def save_ensemble(path: Path, weights: list[Path]) -> None:
 
 @contextmanager
 def aten_convolutions():
-    """Convolutions by ATen on MKL rather than oneDNN. oneDNN picks its algorithm by the thread
-    count (one and two threads give other bits) and its blocking by the CPU; MKL's COMPATIBLE
-    branch (pinned by kitti.cpu) gives the same bits on Intel and AMD and with 1 or 2 threads
+    """Convolutions by ATen on MKL rather than oneDNN or NNPACK. oneDNN picks its algorithm by
+    the thread count (one and two threads give other bits) and its blocking by the CPU; NNPACK,
+    which ATen takes for a batch of 16 or more, blocks its sums by the CPU's cache sizes (an
+    AVX-512 EPYC and an AVX2 one differ in the last bits); MKL's COMPATIBLE branch (pinned by
+    kitti.cpu) gives the same bits on Intel and AMD and with 1 or 2 threads
     (tests/test_same_bytes.py), at the same speed for this network."""
     before = torch.backends.mkldnn.enabled
     torch.backends.mkldnn.enabled = False
     try:
-        yield
+        with torch.backends.nnpack.flags(enabled=False):
+            yield
     finally:
         torch.backends.mkldnn.enabled = before
 

@@ -8,7 +8,9 @@ it does not, a few ulps apart, enough to move a LiDAR return across an edge and 
 across an IoU threshold. Each library reads its choice from the environment when it loads, so
 `pin()` writes the choices below before any of them is imported: `kitti/__init__.py` calls it
 first, and every other package of the project imports `kitti` first. Embree takes its cap in
-its device config instead (simgen.embree.EMBREE_CONFIG).
+its device config instead (simgen.embree.EMBREE_CONFIG). PyTorch's oneDNN and NNPACK convolutions
+size their blocks by the CPU's caches, which no setting caps: the networks run ATen's own
+convolutions on MKL instead (`aten_convolutions` in detector.infer and lifter.predictor).
 
 The pins override the user's own settings of these variables (a stale one would silently break
 the promise); `TESTBED_NATIVE_KERNELS=1` leaves every library to choose for itself (faster on

@@ -46,12 +46,15 @@ def forward_mirrored(net: SizeOrientationNet, x: torch.Tensor, cls: torch.Tensor
 @contextmanager
 def aten_convolutions():
     """Convolutions by ATen on MKL's COMPATIBLE branch (pinned by kitti.cpu) rather than oneDNN,
-    whose algorithm follows the thread count and whose blocking follows the CPU: the same bits
-    on every covered CPU (detector.infer.aten_convolutions; the two packages share no module)."""
+    whose algorithm follows the thread count and whose blocking follows the CPU, or NNPACK, which
+    ATen takes for a batch of 16 or more (a frame's 8 crops and their mirror images) and which
+    blocks its sums by the CPU's cache sizes: the same bits on every covered CPU
+    (detector.infer.aten_convolutions; the two packages share no module)."""
     before = torch.backends.mkldnn.enabled
     torch.backends.mkldnn.enabled = False
     try:
-        yield
+        with torch.backends.nnpack.flags(enabled=False):
+            yield
     finally:
         torch.backends.mkldnn.enabled = before
 

@@ -6,6 +6,7 @@ import sys
 import pytest
 import torch
 
+from detector.infer import aten_convolutions
 from detector.layers import ACTIVATIONS, Focus
 from detector.model import PRESETS, STRIDES, FlexiNet, ModelConfig, count_parameters
 
@@ -24,6 +25,19 @@ def test_output_shapes_every_preset(preset):
     n = sum(3 * (64 // s) * (96 // s) for s in STRIDES)
     assert dec.shape == (1, n, 8)
     assert torch.isfinite(dec).all()
+
+
+def test_inference_convolutions_do_not_follow_torch_s_nnpack_setting():
+    """`detect --batch 8` reads 16 images with the mirrored ones, a batch for which ATen would
+    take NNPACK, whose sums follow the CPU's cache sizes; inference must give ATen's own bits."""
+    torch.manual_seed(0)
+    model = FlexiNet(ModelConfig.from_preset("small", num_classes=3)).eval()
+    x = torch.rand(16, 3, 64, 96)
+    out = []
+    for enabled in (True, False):
+        with torch.backends.nnpack.flags(enabled=enabled), torch.no_grad(), aten_convolutions():
+            out.append(model.predict_raw(x))
+    assert torch.equal(*out)
 
 
 def test_presets_scale_depth_and_width():

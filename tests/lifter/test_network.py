@@ -70,6 +70,23 @@ def test_mirrored_inference_is_exactly_mirror_symmetric():
     assert np.abs(multibin.wrap(a1 + b1 - np.pi)).max() > 1e-3
 
 
+def test_priors_are_the_same_whatever_torch_s_nnpack_setting():
+    """A frame of 11 crops is a batch of 22 with their mirror images, for which ATen would take
+    NNPACK, whose sums follow the CPU's cache sizes: the predictor's priors must be those of
+    ATen's own convolutions either way (NNPACK on, as torch starts, gave other last bits)."""
+    rng = np.random.default_rng(3)
+    image = rng.integers(0, 256, (375, 1242, 3), dtype=np.uint8)
+    x1, y1 = rng.uniform(0, 1100, 11), rng.uniform(120, 250, 11)
+    boxes = [Box2D("Car", np.array([a, b, a + w, b + h]), 1.0)
+             for a, b, w, h in zip(x1, y1, rng.uniform(30, 140, 11), rng.uniform(25, 110, 11))]
+    pred, priors = Predictor(), []
+    for enabled in (True, False):
+        with torch.backends.nnpack.flags(enabled=enabled):
+            priors.append(pred(image, boxes))
+    for a, b in zip(*priors):
+        assert a.alpha == b.alpha
+        np.testing.assert_array_equal(a.dims, b.dims)
+
 def _tiny_dataset(root):
     rng = np.random.default_rng(0)
     frames = []
