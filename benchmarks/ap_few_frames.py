@@ -15,6 +15,8 @@ holds, and the share of sets whose measured figure falls below the whole set's b
 
 from __future__ import annotations
 
+import kitti  # noqa: F401  (first: pins the CPU kernels before numpy or torch loads)
+
 import argparse
 from pathlib import Path
 

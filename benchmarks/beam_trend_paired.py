@@ -26,6 +26,8 @@ distances). A Car with no lifted box counts as IoU 0.
 
 from __future__ import annotations
 
+import kitti  # noqa: F401  (first: pins the CPU kernels before numpy or torch loads)
+
 import argparse
 from pathlib import Path
 

@@ -10,6 +10,8 @@ The network, and the whole read at scale 1 mirrored and in one pass; then the mi
 """
 from __future__ import annotations
 
+import kitti  # noqa: F401  (first: pins the CPU kernels before numpy or torch loads)
+
 import argparse
 import csv
 import statistics

@@ -14,6 +14,8 @@ with `--bootstrap N` the 95 % intervals of `testbed evaluate --bootstrap` over N
 
 from __future__ import annotations
 
+import kitti  # noqa: F401  (first: pins the CPU kernels before numpy or torch loads)
+
 import argparse
 import shutil
 import subprocess

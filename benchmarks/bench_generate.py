@@ -21,6 +21,8 @@ frames means no memory is kept from frame to frame.
 
 from __future__ import annotations
 
+import kitti  # noqa: F401  (first: pins the CPU kernels before numpy or torch loads)
+
 import argparse
 import os
 import re

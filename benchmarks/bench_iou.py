@@ -6,6 +6,8 @@ case the evaluation meets) and a worst case in which every pair overlaps (all bo
 
 from __future__ import annotations
 
+import kitti  # noqa: F401  (first: pins the CPU kernels before numpy or torch loads)
+
 import time
 
 import numpy as np

@@ -14,6 +14,8 @@ Usage: .venv/bin/python benchmarks/bench_lidar.py [--frames N] [--timing-frames 
 
 from __future__ import annotations
 
+import kitti  # noqa: F401  (first: pins the CPU kernels before numpy or torch loads)
+
 import os
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")

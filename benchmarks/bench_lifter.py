@@ -20,6 +20,8 @@ state is the one-off work (imports, numba's kernels compiled or, with their cach
 
 from __future__ import annotations
 
+import kitti  # noqa: F401  (first: pins the CPU kernels before numpy or torch loads)
+
 import argparse
 import shutil
 import tempfile

@@ -18,6 +18,8 @@ an end, the returns that read 0 in red.
 
 from __future__ import annotations
 
+import kitti  # noqa: F401  (first: pins the CPU kernels before numpy or torch loads)
+
 import argparse
 from dataclasses import dataclass
 from pathlib import Path

@@ -12,6 +12,8 @@ the Car detections at --score that overlap no label of any type at IoU 0.5, per 
 
 from __future__ import annotations
 
+import kitti  # noqa: F401  (first: pins the CPU kernels before numpy or torch loads)
+
 import argparse
 from pathlib import Path
 

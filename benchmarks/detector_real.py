@@ -24,6 +24,8 @@ or both ways, each weight file's rows side by side. `--scales`: the reads' input
 
 from __future__ import annotations
 
+import kitti  # noqa: F401  (first: pins the CPU kernels before numpy or torch loads)
+
 import argparse
 from pathlib import Path
 

@@ -11,6 +11,8 @@ average of two files (`detector/weights/README.md`).
 
 from __future__ import annotations
 
+import kitti  # noqa: F401  (first: pins the CPU kernels before numpy or torch loads)
+
 import argparse
 from pathlib import Path
 

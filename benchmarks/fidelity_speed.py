@@ -10,6 +10,8 @@ Each root is read twice and the second pass is timed (the first warms numba and 
 
 from __future__ import annotations
 
+import kitti  # noqa: F401  (first: pins the CPU kernels before numpy or torch loads)
+
 import argparse
 import time
 

@@ -17,6 +17,8 @@ form `simgen/lidar/platform.py` holds it, and per laser the returns a frame (med
 
 from __future__ import annotations
 
+import kitti  # noqa: F401  (first: pins the CPU kernels before numpy or torch loads)
+
 import argparse
 from pathlib import Path
 

@@ -21,6 +21,8 @@ moderate cars placed within IoU 0.7 and 0.5.
 
 from __future__ import annotations
 
+import kitti  # noqa: F401  (first: pins the CPU kernels before numpy or torch loads)
+
 import argparse
 import json
 from pathlib import Path

@@ -18,6 +18,8 @@ lifter reads the dataset through a folder of links to everything else.
 
 from __future__ import annotations
 
+import kitti  # noqa: F401  (first: pins the CPU kernels before numpy or torch loads)
+
 import argparse
 from dataclasses import replace
 from pathlib import Path

@@ -28,6 +28,8 @@ in fence or in other-structure, which is folded into "other" here.)
 
 from __future__ import annotations
 
+import kitti  # noqa: F401  (first: pins the CPU kernels before numpy or torch loads)
+
 import argparse
 import collections
 

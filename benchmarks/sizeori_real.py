@@ -15,6 +15,8 @@ a back or the reverse.
 
 from __future__ import annotations
 
+import kitti  # noqa: F401  (first: pins the CPU kernels before numpy or torch loads)
+
 import argparse
 
 import numpy as np

@@ -17,6 +17,8 @@ reads a real frame.
 
 from __future__ import annotations
 
+import kitti  # noqa: F401  (first: pins the CPU kernels before numpy or torch loads)
+
 import argparse
 import dataclasses
 

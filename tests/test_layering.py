@@ -114,3 +114,29 @@ def test_reduce_beams_on_real_kitti_never_loads_the_simulator(tmp_path):
                                "--out", str(tmp_path / "r32"), "--workers", "1"])
     assert not names & {"simgen", "trimesh", "embreex", "pyrender", "torch"}
     assert len(list((tmp_path / "r32" / "training" / "velodyne").glob("*.bin"))) == 11
+
+
+NUMERIC = ("numpy", "torch", "cv2", "scipy", "numba", "embreex", "trimesh", "pyrender", "shapely")
+
+
+def _first_imports(path: Path) -> list[str]:
+    """The top-level names a file's module-level imports load, in order (`__future__` left out)."""
+    names = []
+    for node in ast.parse(path.read_text()).body:
+        if isinstance(node, ast.Import):
+            names += [a.name.split(".")[0] for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.module != "__future__":
+            names.append("." if node.level else (node.module or "").split(".")[0])
+    return names
+
+
+@pytest.mark.parametrize("path", [ROOT / p / "__init__.py" for p in PACKAGES if p != "kitti"]
+                         + sorted((ROOT / "benchmarks").glob("*.py")), ids=lambda p: p.parent.name + "/" + p.name)
+def test_kitti_pins_the_kernels_before_any_numerical_library_loads(path):
+    """numpy, torch and the rest read the kernel pins (kitti.cpu) once, when they load: a file
+    that loads one before a project package runs AVX-512 loops on a CPU that has them, and its
+    figures differ in the last bits from other machines'."""
+    names = _first_imports(path)
+    project = next((i for i, n in enumerate(names) if n in PACKAGES), len(names))
+    numeric = next((i for i, n in enumerate(names) if n in NUMERIC), len(names))
+    assert project <= numeric, f"{path.name} loads {names[numeric]} first"
