@@ -29,17 +29,18 @@ def main() -> None:
                          axes=Axes(beams=[64, 32, 16, 8], method=["fit", "frustum"], boxes=["gt"]),
                          split="val", data_dir=Path(tmp))
         p = plan(spec)
-        scene_root = p.root / scene_name(spec.scenes[0])
+        generator, models = p.versions
+        scene = scene_name(spec.scenes[0])
+        base = p.base_dir(scene, generator)  # where `execute` finds the frames done
         with LocalBackend(2) as backend:
-            stages.generate(spec.scenes[0].spec, scene_root / "base", args.frames, None, backend)
-        n_val = len((scene_root / "base" / "ImageSets" / "val.txt").read_text().split())
+            stages.generate(spec.scenes[0].spec, base, args.frames, None, backend)
+        n_val = len((base / "ImageSets" / "val.txt").read_text().split())
         print(f"{args.frames} frames ({n_val} in val), {len(p.scans)} scans x {n_val} frames, "
               f"{len(p.points)} lift+evaluate points")
         base_rate = None
         for workers in (1, 2):
-            shutil.rmtree(scene_root / "scans", ignore_errors=True)
-            for d in p.root.glob("points-*"):
-                shutil.rmtree(d)
+            shutil.rmtree(p.scan_dir(scene, generator, p.scans[0]).parent, ignore_errors=True)
+            shutil.rmtree(p.points_dir(f"{generator}-{models}"), ignore_errors=True)
             t = time.perf_counter()
             with LocalBackend(workers) as backend:
                 execute(p, backend)
