@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -72,6 +73,8 @@ class Predictor:
         self.net = load_network(weights)
         self.size = self.net.cfg.crop
         self.mirror = mirror
+        # what the outputs depend on besides the image and the boxes: the weights' bytes, the mirror
+        self.key = (hashlib.sha256(Path(weights).read_bytes()).hexdigest(), mirror)
 
     @torch.no_grad()
     def __call__(self, image: np.ndarray, boxes: list[Box2D]) -> list[Prior]:

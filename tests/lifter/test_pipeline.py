@@ -1,10 +1,14 @@
 """`testbed lift` end to end on a small KITTI-layout dataset: every method, oracle and detection
 boxes, complete result lines for every frame of the split, clear errors on bad input."""
 
+import shutil
+
+import imageio.v3 as imageio
 import numpy as np
 import pytest
 from click.testing import CliRunner
 
+import lifter.mono
 from kitti.iou import iou_3d
 from kitti.labels import read_label, write_label
 from lifter.pipeline import lift_dataset
@@ -83,6 +87,42 @@ def test_lift_passes_mirror_to_the_network(dataset, tmp_path, monkeypatch):
         assert r.exit_code == 0, r.output
     assert seen == [True, False, True]
 
+
+def test_a_frame_s_priors_are_computed_once_for_every_lift_of_it(dataset, tmp_path, monkeypatch):
+    """A sweep lifts the same frames and boxes once per scan and method: the network runs once
+    per frame, the files are those of lifts without the cache, and a changed image is read anew."""
+    from collections import OrderedDict
+
+    import lifter.pipeline
+    import lifter.predictor
+    calls = []
+    run = lifter.predictor.Predictor.__call__
+    monkeypatch.setattr(lifter.predictor.Predictor, "__call__",
+                        lambda self, image, boxes: calls.append(len(boxes)) or run(self, image, boxes))
+    monkeypatch.setattr(lifter.mono, "CONTACT", {})
+    cache = OrderedDict()
+    monkeypatch.setattr(lifter.pipeline, "_priors", cache)
+    for method, out in (("fit", "a"), ("fit", "b"), ("frustum", "c"), ("mono", "d")):
+        lift_dataset(dataset, None, method, tmp_path / out, "val", progress=False)
+    assert calls == [2, 1]  # frames 000000 and 000001; 000002 has no box
+    monkeypatch.setattr(lifter.pipeline, "_priors", OrderedDict())
+    monkeypatch.setattr(lifter.pipeline, "PRIOR_CACHE", 0)
+    for method, out in (("fit", "a0"), ("mono", "d0")):
+        lift_dataset(dataset, None, method, tmp_path / out, "val", progress=False)
+    assert calls == [2, 1, 2, 1, 2, 1]
+    for a, b in (("a", "b"), ("a", "a0"), ("d", "d0")):
+        for fid in ("000000", "000001"):
+            assert (tmp_path / a / f"{fid}.txt").read_bytes() == (tmp_path / b / f"{fid}.txt").read_bytes()
+    monkeypatch.setattr(lifter.pipeline, "_priors", cache)
+    monkeypatch.setattr(lifter.pipeline, "PRIOR_CACHE", 4096)
+    copy = tmp_path / "copy"
+    shutil.copytree(dataset, copy)
+    image = copy / "training" / "image_2" / "000001.png"
+    pixels = imageio.imread(image)
+    pixels[0, 0] ^= 1
+    imageio.imwrite(image, pixels)
+    lift_dataset(copy, None, "fit", tmp_path / "e", "val", progress=False)
+    assert calls == [2, 1, 2, 1, 2, 1, 1]  # the first frame's image bytes are the dataset's
 
 def test_missing_detection_file_is_an_empty_frame(dataset, tmp_path):
     # (this pinned the opposite before: a frame without a detection file was an error; a detector
