@@ -11,9 +11,10 @@ each checkout and the ratio.
 Then, per frame and in the same run, the steps as each checkout's `benchmarks/bench_render.py
 --breakdown-only` times them (world sampling; the render: build, colour, seg/depth, shadows), and
 this tree's LiDAR sweep against the bare Embree query of its rays (`benchmarks/bench_lidar.py`).
-While a run generates, each worker process's peak resident memory (VmHWM) is read from /proc at
-the `--warm`-th frame and at every quarter of the run: a figure that stops growing after the warm
-frames means no memory is kept from frame to frame.
+While a run generates, each worker process's peak and current resident memory (VmHWM, VmRSS)
+is read from /proc at the `--warm`-th frame and at every quarter of the run: current memory that
+stops growing after the warm frames means no memory is kept from frame to frame (the peak may still
+step up where a larger world comes along).
 
     .venv/bin/python benchmarks/bench_generate.py --base ec11039 [--frames 120] [--rounds 2]
     .venv/bin/python benchmarks/bench_generate.py --frames 1000 --rounds 1 --no-base --no-steps
@@ -49,7 +50,7 @@ class Run:
     frames: int
     wall_s: float
     steady_fps: float
-    peaks_mb: list[tuple[int, list[float]]] = field(default_factory=list)  # (frames written, per worker)
+    memory_mb: list[tuple[int, list[tuple[float, float]]]] = field(default_factory=list)  # (frames written, per worker (peak, now))
 
 
 def _children(pid: int) -> list[int]:
@@ -70,11 +71,11 @@ def _children(pid: int) -> list[int]:
     return out
 
 
-def _worker_peaks_mb(pid: int) -> list[float]:
-    """Peak resident memory of each pool worker under `pid` (processes started by multiprocessing's
-    spawn), largest first."""
-    peaks = []
-    for c in _children(pid):
+def _worker_memory_mb(pid: int) -> list[tuple[float, float]]:
+    """Each pool worker's peak and current resident memory (VmHWM, VmRSS) under `pid` (processes
+    started by multiprocessing's spawn), in the order of their process ids."""
+    mem = []
+    for c in sorted(_children(pid)):
         try:
             cmd = Path(f"/proc/{c}/cmdline").read_bytes()
             status = Path(f"/proc/{c}/status").read_text()
@@ -82,10 +83,10 @@ def _worker_peaks_mb(pid: int) -> list[float]:
             continue
         if b"spawn_main" not in cmd:
             continue
-        m = re.search(r"VmHWM:\s+(\d+) kB", status)
-        if m:
-            peaks.append(int(m.group(1)) / 1024)
-    return sorted(peaks, reverse=True)
+        kb = [re.search(rf"{k}:\s+(\d+) kB", status) for k in ("VmHWM", "VmRSS")]
+        if all(kb):
+            mem.append(tuple(int(m.group(1)) / 1024 for m in kb))
+    return mem
 
 
 def testbed(*args: str) -> list[str]:
@@ -105,24 +106,26 @@ def generate_run(checkout: Path, label: str, frames: int, warm: int, scratch: Pa
     marks = sorted({warm, *(frames * q // 4 for q in (1, 2, 3))} - {0})
     cmd = testbed("generate", str(checkout / "scenes/urban.yaml"), "--out", str(out),
                   "--frames", str(frames), "--workers", "2")
+    log = scratch / f"gen-{label}.log"  # a file, not a pipe: a long run's progress bar fills a pipe
     t0 = time.perf_counter()
-    proc = subprocess.Popen(cmd, cwd=checkout, env=env_for(checkout), stdout=subprocess.DEVNULL,
-                            stderr=subprocess.PIPE, text=True)
-    peaks, last = [], []
+    with log.open("w") as err:
+        proc = subprocess.Popen(cmd, cwd=checkout, env=env_for(checkout), stdout=subprocess.DEVNULL,
+                                stderr=err, text=True)
+    memory, last = [], []
     while proc.poll() is None:
         time.sleep(POLL_S)
-        last = _worker_peaks_mb(proc.pid) or last
+        last = _worker_memory_mb(proc.pid) or last
         written = len(list(meta.glob("*.json"))) if meta.is_dir() else 0
         while marks and written >= marks[0]:
-            peaks.append((marks.pop(0), last))
+            memory.append((marks.pop(0), last))
     wall = time.perf_counter() - t0
     if proc.returncode:
-        raise SystemExit(f"{label}: `{' '.join(cmd)}` failed:\n{proc.stderr.read()[-3000:]}")
-    peaks.append((frames, last))
+        raise SystemExit(f"{label}: `{' '.join(cmd)}` failed:\n{log.read_text()[-3000:]}")
+    memory.append((frames, last))
     done = np.sort([p.stat().st_mtime for p in meta.glob("*.json")])
     shutil.rmtree(out)
     steady = (len(done) - warm) / (done[-1] - done[warm - 1])
-    return Run(label, frames, wall, steady, peaks)
+    return Run(label, frames, wall, steady, memory)
 
 
 def bench_lines(checkout: Path, script: str, *args: str, pattern: str) -> list[str]:
@@ -156,9 +159,10 @@ def worktree(rev: str):
 
 
 def print_run(r: Run) -> None:
-    mem = "; ".join(f"{n}: {', '.join(f'{m:.0f}' for m in peak)}" for n, peak in r.peaks_mb)
+    mem = "; ".join(f"{n}: {', '.join(f'{hwm:.0f}/{now:.0f}' for hwm, now in workers)}"
+                    for n, workers in r.memory_mb)
     print(f"  {r.label:5s} {r.frames} frames in {r.wall_s:6.1f} s; steady {r.steady_fps:.3f} frames/s; "
-          f"workers' peak RSS MB at frame {mem}", flush=True)
+          f"workers' resident memory MB, peak/now, at frame {mem}", flush=True)
 
 
 def steps(checkouts: dict[str, Path], frames: int) -> None:

@@ -117,6 +117,33 @@ def test_pool_workers_start_with_one_blas_thread_each(monkeypatch):
         assert backend.map(os.getenv, list(BLAS_THREAD_VARS)) == ["1"] * len(BLAS_THREAD_VARS)
 
 
+_LAST: list = []  # in each pool worker: a weak reference to the cycle its last job left
+
+
+class _Cycle:
+    def __init__(self):
+        self.me = self
+
+
+def _leave_a_cycle(_: int) -> tuple[bool | None, bool]:
+    """Whether the cycle this worker's previous job left is gone, and whether the worker froze
+    its long-lived objects; then leave a new cycle."""
+    import gc
+    import weakref
+    freed = None if not _LAST else _LAST[-1]() is None
+    _LAST.append(weakref.ref(_Cycle()))
+    return freed, gc.get_freeze_count() > 0
+
+
+def test_pool_workers_collect_each_job_s_cycles():
+    """A frame leaves objects in reference cycles, which the workers' raised collection thresholds
+    left for a full collection hundreds of frames away (memory grew through long runs)."""
+    with LocalBackend(2) as backend:
+        seen = backend.map(_leave_a_cycle, list(range(12)))
+    firsts = [f is None for f, _ in seen]  # each worker's first job
+    assert 1 <= sum(firsts) <= 2 and all(f for f, _ in seen if f is not None)
+    assert [not frozen for _, frozen in seen] == firsts
+
 def _ev(ap3d_mod: float) -> dict:
     block = {"3d": {"R40": [90.0, ap3d_mod, 50.0], "R11": [91.0, 80.0, 51.0]}}
     measured = {"3d": [100.0, ap3d_mod + 20, 95.0]}
