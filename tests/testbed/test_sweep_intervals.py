@@ -199,7 +199,7 @@ def test_sweep_report_carries_intervals_and_paired_changes(tmp_path):
     assert iou[0]["decided"] == "no"
     md = (tmp_path / "a" / "report.md").read_text()
     assert md.index("## What the sweep settles") < md.index("## Car 3D AP|R40 (IoU 0.7)")
-    assert "| fit, gt boxes, hdl64e 16 beams | hdl64e 64 beams | 3 | 0.867 / 1.000 | -0.133 [" in md
+    assert "| fit, gt boxes, uniform 16 beams | hdl64e 64 beams | 3 | 0.867 / 1.000 | -0.133 [" in md
     for png in ("paired_changes.png", "ap_vs_axis.png", "ap_vs_distance_3d.png"):
         assert (tmp_path / "a" / png).stat().st_size > 1000
 
