@@ -2,6 +2,7 @@
 boxes, complete result lines for every frame of the split, clear errors on bad input."""
 
 import shutil
+from collections import OrderedDict
 
 import imageio.v3 as imageio
 import numpy as np
@@ -9,6 +10,8 @@ import pytest
 from click.testing import CliRunner
 
 import lifter.mono
+import lifter.pipeline
+import lifter.predictor
 from kitti.iou import iou_3d
 from kitti.labels import read_label, write_label
 from lifter.pipeline import lift_dataset
@@ -72,7 +75,6 @@ def test_cli_with_detection_files_and_a_trained_checkpoint(dataset, tmp_path):
 def test_lift_passes_mirror_to_the_network(dataset, tmp_path, monkeypatch):
     """`testbed lift` reads crops mirrored too unless --no-mirror (the network's outputs:
     tests/lifter/test_network.py)."""
-    import lifter.predictor
     seen = []
 
     class Recording(lifter.predictor.Predictor):
@@ -91,10 +93,6 @@ def test_lift_passes_mirror_to_the_network(dataset, tmp_path, monkeypatch):
 def test_a_frame_s_priors_are_computed_once_for_every_lift_of_it(dataset, tmp_path, monkeypatch):
     """A sweep lifts the same frames and boxes once per scan and method: the network runs once
     per frame, the files are those of lifts without the cache, and a changed image is read anew."""
-    from collections import OrderedDict
-
-    import lifter.pipeline
-    import lifter.predictor
     calls = []
     run = lifter.predictor.Predictor.__call__
     monkeypatch.setattr(lifter.predictor.Predictor, "__call__",
@@ -123,6 +121,7 @@ def test_a_frame_s_priors_are_computed_once_for_every_lift_of_it(dataset, tmp_pa
     imageio.imwrite(image, pixels)
     lift_dataset(copy, None, "fit", tmp_path / "e", "val", progress=False)
     assert calls == [2, 1, 2, 1, 2, 1, 1]  # the first frame's image bytes are the dataset's
+
 
 def test_missing_detection_file_is_an_empty_frame(dataset, tmp_path):
     # (this pinned the opposite before: a frame without a detection file was an error; a detector
