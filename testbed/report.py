@@ -23,7 +23,7 @@ from matplotlib.ticker import MaxNLocator  # noqa: E402
 from kitti.eval.protocol import DIFFICULTIES as DIFFS  # noqa: E402
 from kitti.io import atomic_path, atomic_write_text  # noqa: E402
 
-from .sweep import Point, own_beams, weather_suffix  # noqa: E402
+from .sweep import Point, ScanConfig, weather_suffix  # noqa: E402
 from .uncertainty import AXES, PairedChange, Uncertainty, ap_values, range_label  # noqa: E402
 
 POINT_COLS = ("scene", "lidar", "beams", "beam_mode", "max_range", "lidar_weather", "method", "boxes")
@@ -114,9 +114,8 @@ def _config_label(row: dict) -> str:
     a `uniform` fan; rings dropped keep the preset's name."""
     if row["beams"] == "-":
         return "no LiDAR"
-    native = row["beam_mode"] == "native"
-    sensor = "uniform" if native and int(row["beams"]) != own_beams(row["lidar"]) else row["lidar"]
-    mode = "" if native else " (rings dropped)"
+    sensor = ScanConfig(row["lidar"], int(row["beams"]), row["beam_mode"], None).sensor
+    mode = "" if row["beam_mode"] == "native" else " (rings dropped)"
     rng = "" if row["max_range"] == "-" else f", {row['max_range']} m"
     weather = "" if row.get("lidar_weather", "-") == "-" else f", {row['lidar_weather']}"
     return f"{sensor} {row['beams']} beams{mode}{rng}{weather}"
