@@ -131,7 +131,7 @@ def object_scores(ds: KittiDataset, ids: list[str], pred: dict) -> list[tuple]:
     return sorted(rows, key=lambda r: r[1])
 
 
-GROUPS = {  # the breakdown of the issue tracker's real-frame figures: label fields, KITTI's levels
+GROUPS = {  # by the label fields KITTI's difficulty levels read (occlusion, truncation) and by distance
     "every Car and Van": lambda h, tr, occ, d: True,
     "fully visible (occlusion 0)": lambda h, tr, occ, d: occ == 0,
     "partly occluded (1)": lambda h, tr, occ, d: occ == 1,
