@@ -66,16 +66,22 @@ class _Block:
     measured: dict
 
 
-def _ap_block(p: Packed, cls: str, metrics: Sequence[str], ovs: dict, dc_ov: np.ndarray,
-              loose: bool, subset: tuple[np.ndarray, np.ndarray] | None,
+def _ignored(p: Packed, cls: str) -> list[tuple[np.ndarray, np.ndarray]]:
+    """(ignored truth, ignored detections) of each difficulty (`protocol.clean`): the class's
+    flags, computed once for every block that reads them (strict, loose, each distance bin)."""
+    return [clean(cls, d, p.gt.type, p.gt.bbox, p.gt.occluded, p.gt.truncated, p.dt.type, p.dt.bbox)
+            for d in range(len(DIFFICULTIES))]
+
+
+def _ap_block(p: Packed, cls: str, ignored: list[tuple[np.ndarray, np.ndarray]], metrics: Sequence[str],
+              ovs: dict, dc_ov: np.ndarray, loose: bool, subset: tuple[np.ndarray, np.ndarray] | None,
               overlap: float | None = None) -> _Block:
-    """Every difficulty and metric of one class; AOS rides on the 2D matching. `overlap`, when
-    given, replaces the protocol's IoU threshold (diagnosis only, see `ap_2d`)."""
+    """Every difficulty and metric of one class (`ignored`: its `_ignored` flags); AOS rides on
+    the 2D matching. `overlap`, when given, replaces the protocol's IoU threshold (diagnosis only,
+    see `ap_2d`)."""
     b = _Block({m: {"R11": [], "R40": []} for m in metrics}, {m: [] for m in metrics}, [], {},
                {m: [] for m in metrics})
-    for d in range(len(DIFFICULTIES)):
-        ig_gt, ig_dt = clean(cls, d, p.gt.type, p.gt.bbox, p.gt.occluded, p.gt.truncated,
-                             p.dt.type, p.dt.bbox)
+    for d, (ig_gt, ig_dt) in enumerate(ignored):
         if subset is not None:
             ig_gt, ig_dt = restrict(ig_gt, ig_dt, *subset)
         b.n_gt.append(int((ig_gt == 0).sum()))
@@ -123,8 +129,9 @@ def class_ap(p: Packed, cls: str, metrics: Sequence[str], ovs: dict, dc_ov: np.n
     the loose block of bird's-eye and 3D, and what the detections cannot be scored on."""
     absent = _absent(p, cls, metrics)
     ms = _metrics_for(absent, metrics)
-    strict = _ap_block(p, cls, ms, ovs, dc_ov, False, None)
-    loose = _ap_block(p, cls, [m for m in ms if m in ("bev", "3d")], ovs, dc_ov, True, None)
+    ignored = _ignored(p, cls)
+    strict = _ap_block(p, cls, ignored, ms, ovs, dc_ov, False, None)
+    loose = _ap_block(p, cls, ignored, [m for m in ms if m in ("bev", "3d")], ovs, dc_ov, True, None)
     return strict, loose, absent
 
 
@@ -135,12 +142,13 @@ def _range_bins(p: Packed, classes: list[str], metrics: list[str], absent: dict,
     gt_bin, dt_bin = breakdown.bin_index(p.gt.distance, edges), breakdown.bin_index(p.dt.distance, edges)
     out = {"edges": edges.tolist(), "distance": "ground (camera x-z) distance of the location",
            "bins": []}
+    ignored = {cls: _ignored(p, cls) for cls in classes}
     for k in _progress(list(range(len(edges) - 1)), progress, "range bins", "bin"):
         entry = {"range": [float(edges[k]), float(edges[k + 1])], "ap": {}, "n_gt": {},
                  "ap_r40_measured": {}}
         for cls in classes:
             ms = _metrics_for(absent.get(cls, {}), metrics)
-            b = _ap_block(p, cls, ms, ovs, dc_ov, False, (gt_bin == k, dt_bin == k))
+            b = _ap_block(p, cls, ignored[cls], ms, ovs, dc_ov, False, (gt_bin == k, dt_bin == k))
             entry["n_gt"][cls] = b.n_gt
             # no truth in the bin: AP is undefined, reported as None rather than 0
             entry["ap"][cls] = {m: {key: [v if n else None for v, n in zip(vals, b.n_gt)]
@@ -213,6 +221,6 @@ def ap_2d(gt: Mapping[str, Sequence[Object3D]], dt: Mapping[str, Sequence[Object
     if not 0.0 < overlap < 1.0:
         raise ValueError(f"overlap must lie in (0, 1), got {overlap}")
     p = pack(gt, dt)
-    b = _ap_block(p, cls, ["2d"], {"2d": pair_overlaps(p, "2d")}, dontcare_overlap(p.dt, p.dc),
-                  False, None, overlap)
+    b = _ap_block(p, cls, _ignored(p, cls), ["2d"], {"2d": pair_overlaps(p, "2d")},
+                  dontcare_overlap(p.dt, p.dc), False, None, overlap)
     return b.ap["2d"]["R40"]
