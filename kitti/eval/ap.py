@@ -23,6 +23,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from . import matching
@@ -57,11 +58,11 @@ class Curve:
 
     @staticmethod
     def r11(p: np.ndarray) -> float:
-        return _devkit_mean(p, range(0, N_SAMPLE_PTS, 4), 11)
+        return float(_devkit_mean(p, 0, 4, 11))
 
     @staticmethod
     def r40(p: np.ndarray) -> float:
-        return _devkit_mean(p, range(1, N_SAMPLE_PTS), 40)
+        return float(_devkit_mean(p, 1, 1, 40))
 
     def r40_measured(self, values_at: np.ndarray) -> float:
         """AP|R40 on the measured recall (module docstring): `values_at` (precision_at or
@@ -73,13 +74,15 @@ class Curve:
         return float(100.0 * best.mean())
 
 
-def _devkit_mean(p: np.ndarray, slots: range, n: int) -> float:
-    """The devkit sums precision into a C `float` and prints `sum / n * 100` in float: replicated,
-    so our numbers are the devkit's to the last printed digit."""
+@numba.njit(cache=True, nogil=True)
+def _devkit_mean(p, start, step, n):
+    """The devkit sums precision (p[start::step] of the N_SAMPLE_PTS values) into a C `float`,
+    each step a double sum rounded to float, and prints `sum / n * 100` in float: replicated, so
+    our numbers are the devkit's to the last printed digit."""
     s = np.float32(0.0)
-    for i in slots:
-        s = np.float32(float(s) + float(p[i]))
-    return float(np.float32(np.float32(s / np.float32(n)) * np.float32(100)))
+    for i in range(start, N_SAMPLE_PTS, step):
+        s = np.float32(np.float64(s) + np.float64(p[i]))
+    return np.float32(np.float32(s / np.float32(n)) * np.float32(100.0))
 
 
 @dataclass
