@@ -163,9 +163,9 @@ def interval_rows(ds: KittiDataset, ids: list[str], preds: dict[str, dict],
     gt = {fid: ds.labels(fid) for fid in ids}
     boot = bootstrap_ap(gt, preds, drives=drives)["Car", "2d", False]
     first = boot.names[0]
-    rows = [f"Car 2D AP|R40 moderate over {DRAWS} bootstrap draws of {drawn(sorted(gt), drives)} (a frame's "
-            f"labels and detections together): its 95 % interval, and the paired 95 % interval of "
-            f"its difference to {first}, by the devkit and on the measured recall:", "",
+    rows = [(f"Car 2D AP|R40 moderate over {DRAWS} bootstrap draws of {drawn(sorted(gt), drives)} (a frame's "
+             f"labels and detections together): its 95 % interval, and the paired 95 % interval of "
+             f"its difference to {first}, by the devkit and on the measured recall:"), "",
             "| weights | 95 % interval | minus the first run | on the measured recall | minus the first run |",
             "|---|---|---|---|---|"]
     for name in boot.names:

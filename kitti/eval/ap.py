@@ -95,7 +95,7 @@ class Selection:
     rel_dt_start: np.ndarray
 
     @classmethod
-    def of(cls, p: Packed, ig_gt: np.ndarray, ig_dt: np.ndarray) -> "Selection":
+    def of(cls, p: Packed, ig_gt: np.ndarray, ig_dt: np.ndarray) -> Selection:
         rel_gt = np.nonzero(ig_gt != -1)[0].astype(np.int64)
         rel_dt = np.nonzero(ig_dt != -1)[0].astype(np.int64)
         return cls(rel_gt, np.searchsorted(rel_gt, p.gt.start).astype(np.int64),

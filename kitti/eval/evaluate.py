@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Iterable, Mapping, Sequence
 
 import numpy as np
 
@@ -15,7 +15,6 @@ from .overlaps import dontcare_overlap, pair_overlaps
 from .protocol import DIFFICULTIES, METRICS, clean, min_overlap, restrict
 from .report import EvalResult
 from .volumetric import DEFAULT_MAX_DISTANCE
-
 
 PROGRESS_DELAY = 0.5  # seconds before a step's bar shows: a quick step draws none, not an empty one
 
