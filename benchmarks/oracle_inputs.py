@@ -12,8 +12,9 @@ A generated label's 2D box is its 3D box's projection to a thousandth of a pixel
 the real dev frames), as the largest of four Gaussian sides of sd 0.6 px would be (the median of
 the largest of four |N(0, s)| is 1.41 s: (2 Phi(x / s) - 1) ** 4 = 1/2). The noisy boxes go
 to the lifter as a detection folder (score 1, class and everything else as labelled), each
-side drawn once per sigma with a fixed seed and clipped to the image. Without planes/, the
-lifter reads the dataset through a folder of links to everything else.
+side drawn once per sigma with a fixed seed and clipped to the image, and the lifter told that
+sigma (`lift_dataset`'s side_sd). Without planes/, the lifter reads the dataset through a folder
+of links to everything else.
 """
 
 from __future__ import annotations
@@ -92,7 +93,7 @@ def main() -> None:
                 key = (method, sigma, road if get_method(method).road == "planes-or-scan" else "scan")
                 if key not in done:
                     pred = args.out / f"{road}_{method}_{sigma:g}"
-                    lift_dataset(folders[road], folder, method, pred, args.split)
+                    lift_dataset(folders[road], folder, method, pred, args.split, side_sd=sigma)
                     r = evaluate(gt, load_annotations(pred, ids=ids), classes=("Car",), metrics=("3d",))
                     done[key] = f"{r.ap['Car']['3d']['R40'][1]:.1f} / {r.ap_loose['Car']['3d']['R40'][1]:.1f}"
                 cells.append(done[key])

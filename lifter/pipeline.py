@@ -18,7 +18,7 @@ from kitti.errors import KittiFormatError
 from kitti.labels import Object3D, read_label, write_label
 
 from .methods import Frame, get_method
-from .types import Box2D, Prior
+from .types import LABEL_SIDE_SIGMA_PX, Box2D, Prior
 
 # Oracle boxes: every labelled road user. The evaluation scores Car/Pedestrian/Cyclist and ignores
 # their neighbour classes (Van, Person_sitting); lifting the other vehicles too costs nothing there
@@ -39,9 +39,17 @@ def oracle_boxes(labels: list[Object3D], classes=ORACLE_CLASSES) -> list[Box2D]:
     return [Box2D(o.type, o.bbox.copy(), 1.0) for o in labels if o.type in classes]
 
 
-def read_detections(det_dir: Path, fid: str) -> list[Box2D]:
+def detection_side_sigma(side_sd: float | None = None) -> float:
+    """The sd `fit` gives a detected box's left and right sides: a label's own
+    (LABEL_SIDE_SIGMA_PX) and, given, the detector's error `side_sd` (px RMS) in quadrature."""
+    return float(np.hypot(LABEL_SIDE_SIGMA_PX, side_sd or 0.0))
+
+
+def read_detections(det_dir: Path, fid: str, side_sd: float | None = None) -> list[Box2D]:
     """The frame's detections; a frame without a file has none (a detector that writes only the
-    frames where it found something, or an empty frame: the evaluation reads it the same way)."""
+    frames where it found something, or an empty frame: the evaluation reads it the same way).
+    Their sides' sd is `detection_side_sigma(side_sd)`."""
+    sigma = detection_side_sigma(side_sd)
     path = det_dir / f"{fid}.txt"
     if not path.exists():
         return []
@@ -51,7 +59,7 @@ def read_detections(det_dir: Path, fid: str) -> list[Box2D]:
             continue
         if o.score is None:
             raise KittiFormatError("detection line without a score", path, None, "score")
-        boxes.append(Box2D(o.type, o.bbox.copy(), float(o.score)))
+        boxes.append(Box2D(o.type, o.bbox.copy(), float(o.score), sigma))
     return boxes
 
 
@@ -115,11 +123,13 @@ def lift_frame(method: str, boxes: list[Box2D], priors: list[Prior], calib: Cali
 
 def lift_dataset(data: str | Path, detections: Path | None, method: str, out: str | Path,
                  split: str | None, priors: str = "net", weights: str | Path | None = None,
-                 progress: bool = True, mirror: bool = True) -> int:
+                 progress: bool = True, mirror: bool = True, side_sd: float | None = None) -> int:
     """Write out/<id>.txt for every frame of the split; returns the number of 3D boxes written.
 
     `detections`: a folder of detection result files, or None for the labels' boxes (oracle).
-    `mirror`: the size/orientation network also reads each crop mirrored (`lifter.predictor`)."""
+    `mirror`: the size/orientation network also reads each crop mirrored (`lifter.predictor`).
+    `side_sd`: how far the detections' left and right sides lie from the true boxes' (px RMS),
+    which `fit` then weighs them by; None weighs them as a label's."""
     m = get_method(method)
     ds = KittiDataset(data)
     ids = ds.ids(split)
@@ -141,7 +151,7 @@ def lift_dataset(data: str | Path, detections: Path | None, method: str, out: st
             # that cannot be read stops the run with the file and field named, and the frames
             # written before it stay as they are
             labels = ds.labels(fid) if (det_dir is None or priors == "truth") else None
-            b2d = oracle_boxes(labels) if det_dir is None else read_detections(det_dir, fid)
+            b2d = oracle_boxes(labels) if det_dir is None else read_detections(det_dir, fid, side_sd)
             if priors == "truth":
                 pr = truth_priors(b2d, labels)
             else:

@@ -34,8 +34,6 @@ MAX_GROW_W = 0.25      # m, most they may widen it
 SHRINK = 0.15          # most the returns may shorten or narrow it (share of the prior)
 LENGTH_GRID = 1.0 + 0.01 * np.arange(-25, 26)  # x prior length tried against the 2D box
 SIGMA_LENGTH = 0.35    # m, the size network's length error on cars (MAE 0.35 m on held-out worlds)
-SIGMA_SIDE_PX = 2.0    # px, a 2D box side vs the projected 3D box (the body's outline lies 1-3 px
-                       # inside the box's corners on the testbed's cars)
 BORDER_LEFT = 1.0      # px: a 2D side at or beyond these is cut by the image border
 BORDER_RIGHT = 2.0     # px from the right edge (image width - this)
 # A car's outline is set in from its box above the bumpers: the bonnet slopes back to the
@@ -303,11 +301,11 @@ def translation(pxz: np.ndarray, pu: np.ndarray, ph: np.ndarray, h: float, w: fl
 @numba.njit(cache=True, nogil=True)
 def length_from_sides(T: np.ndarray, h: float, w: float, l: float, ry: float, slide: np.ndarray,
                       bbox: np.ndarray, P: np.ndarray, width: int, plane: np.ndarray,
-                      up: np.ndarray) -> tuple[np.ndarray, float]:
+                      up: np.ndarray, side_sigma: float) -> tuple[np.ndarray, float]:
     """A length the returns do not measure, chosen with the 2D box: every length of LENGTH_GRID x
     the prior, the box's anchoring face kept (the centre slides by `slide` per metre); the one
-    that best balances the outline's misfit to the 2D box's left and right sides (SIGMA_SIDE_PX
-    each) against its distance from the prior (SIGMA_LENGTH) wins. Seen from behind, the sides
+    that best balances the outline's misfit to the 2D box's left and right sides (`side_sigma`
+    px each, `types.Box2D`) against its distance from the prior (SIGMA_LENGTH) wins. Seen from behind, the sides
     hardly move with the length and the prior stands; seen from the side, they decide.
     Returns the centre and the length."""
     k = len(LENGTH_GRID)
@@ -317,7 +315,7 @@ def length_from_sides(T: np.ndarray, h: float, w: float, l: float, ry: float, sl
         x, z = T[0] + (li - l) * slide[0], T[2] + (li - l) * slide[1]
         boxes[i] = (x, road_y(x, z, plane), z, h, w, li, ry)
     cost = (((boxes[:, 5] - l) / SIGMA_LENGTH) ** 2
-            + side_misfit(boxes, P, bbox, width, up) / SIGMA_SIDE_PX ** 2)
+            + side_misfit(boxes, P, bbox, width, up) / side_sigma ** 2)
     best = np.argmin(cost)
     return boxes[best, :3].copy(), boxes[best, 5]
 

@@ -6,6 +6,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+# px, how far a labelled 2D box's left and right sides lie from the lifter's box projected: the
+# body's outline lies 1-3 px inside the box's corners on the testbed's cars. A detected box's
+# sides may be given their detector's error besides (lifter.pipeline.detection_side_sigma).
+LABEL_SIDE_SIGMA_PX = 2.0
+
 
 @dataclass
 class Box2D:
@@ -14,6 +19,7 @@ class Box2D:
     type: str
     bbox: np.ndarray  # (4,) x1, y1, x2, y2 in image_2 pixels
     score: float
+    side_sigma: float = LABEL_SIDE_SIGMA_PX  # px, the sd of its left and right sides: `fit` weighs them by it
 
     @property
     def centre(self) -> tuple[float, float]:

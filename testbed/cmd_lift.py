@@ -27,16 +27,22 @@ from .options import data_option, split_name, split_option
               help="Size/orientation checkpoint [default: the shipped lifter/weights].")
 @click.option("--mirror/--no-mirror", default=True, show_default=True,
               help="The network reads each crop and its mirror image (twice its work).")
+@click.option("--side-sd", type=click.FloatRange(min=0.0), metavar="PX",
+              help="How far the detections' left and right box sides lie from the true boxes' "
+                   "(RMS, pixels; benchmarks/detector_sides.py measures it), which `fit` then "
+                   "weighs them by [default: weighed as a label's].")
 def lift(data: Path, boxes: str, method: str, split: str, out: Path, priors: str,
-         weights: Path | None, mirror: bool) -> None:
+         weights: Path | None, mirror: bool, side_sd: float | None) -> None:
     """Lift the 2D boxes of every frame of the --split of --data to 3D with METHOD."""
     from kitti.errors import KittiFormatError
     from lifter.pipeline import lift_dataset
 
     try:
         detections = None if boxes == "gt" else Path(boxes)
+        if detections is None and side_sd is not None:
+            raise click.UsageError("--side-sd describes detected boxes: it needs --boxes FOLDER")
         n = lift_dataset(data, detections, method, out, split_name(split), priors=priors, weights=weights,
-                         mirror=mirror)
+                         mirror=mirror, side_sd=side_sd)
     except (KittiFormatError, ValueError, FileNotFoundError) as e:
         raise click.ClickException(str(e)) from None
     click.echo(f"{n} 3D boxes written to {out}")

@@ -12,7 +12,7 @@ from lifter.ground import fit_ground_plane
 from lifter.mono import box_up_of, solve_from_alpha
 from lifter.placement import OUTLINE_FRONT, OUTLINE_REAR
 from lifter.points import frame_points
-from lifter.types import Box2D, Prior
+from lifter.types import LABEL_SIDE_SIGMA_PX, Box2D, Prior
 from tests.lifter.synth import IMAGE_SIZE, PLANE, make_frame
 
 
@@ -204,6 +204,6 @@ def test_a_front_views_width_is_the_one_the_2d_box_outlines(labelled_w):
     bbox = project_boxes(label[None], calib, IMAGE_SIZE, upright="lidar")[0]
     sensor = calib.lidar_to_rect(np.zeros((1, 3)))[0][[0, 2]]
     T, dims, *_ = _size_and_place(xz, u, height, 1.5, 1.7, 4.0, np.pi / 2, False, True, bbox,
-                                  sensor, xz.mean(axis=0), P, IMAGE_SIZE[0], PLANE, up)
+                                  sensor, xz.mean(axis=0), P, IMAGE_SIZE[0], PLANE, up, LABEL_SIDE_SIGMA_PX)
     assert dims[1] == pytest.approx(labelled_w, abs=1e-9)
     assert T[0] == pytest.approx(body[0], abs=1e-3)  # the 2D sides' rows and the centroid's pull

@@ -9,9 +9,11 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
+import lifter.fit
 import lifter.mono
 import lifter.pipeline
 import lifter.predictor
+import lifter.types
 from kitti.iou import iou_3d
 from kitti.labels import read_label, write_label
 from lifter.pipeline import lift_dataset
@@ -121,6 +123,31 @@ def test_a_frame_s_priors_are_computed_once_for_every_lift_of_it(dataset, tmp_pa
     imageio.imwrite(image, pixels)
     lift_dataset(copy, None, "fit", tmp_path / "e", "val", progress=False)
     assert calls == [2, 1, 2, 1, 2, 1, 1]  # the first frame's image bytes are the dataset's
+
+
+
+def test_side_sd_sets_the_sigma_fit_weighs_detected_sides_by(dataset, tmp_path, monkeypatch):
+    """Detected boxes reach `fit` weighed as a label's sides, or with the detector's side error
+    (--side-sd) and a label's in quadrature; labels with a label's own; --side-sd without
+    detection files is refused."""
+    det = tmp_path / "det"
+    objs = read_label(dataset / "training" / "label_2" / "000000.txt")
+    for o in objs:
+        o.score = 0.9
+    write_label(det / "000000.txt", objs)
+    seen = []
+    lift = lifter.fit.lift_fit
+    monkeypatch.setattr(lifter.fit, "lift_fit",
+                        lambda boxes, *a, **kw: seen.append([b.side_sigma for b in boxes]) or lift(boxes, *a, **kw))
+    base = ["lift", "--data", str(dataset), "--method", "fit", "--split", "val", "--priors", "truth"]
+    for flags in (["--boxes", str(det)], ["--boxes", str(det), "--side-sd", "1.5"], ["--boxes", "gt"]):
+        r = CliRunner().invoke(cli, [*base, *flags, "--out", str(tmp_path / "o")])
+        assert r.exit_code == 0, r.output
+    label = lifter.types.LABEL_SIDE_SIGMA_PX
+    assert seen[0] == [label] * 2 and seen[1] == pytest.approx([2.5] * 2)  # hypot(2, 1.5)
+    assert seen[2] == [label] * 2 and seen[3] == [label]  # the labels of frames 000000 and 000001
+    r = CliRunner().invoke(cli, [*base, "--boxes", "gt", "--side-sd", "3", "--out", str(tmp_path / "x")])
+    assert r.exit_code != 0 and "--side-sd" in r.output
 
 
 def test_missing_detection_file_is_an_empty_frame(dataset, tmp_path):
