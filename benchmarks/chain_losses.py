@@ -17,6 +17,7 @@ from __future__ import annotations
 import kitti  # noqa: F401  (first: pins the CPU kernels before numpy or torch loads)
 
 import argparse
+from itertools import pairwise
 from pathlib import Path
 
 import numpy as np
@@ -82,7 +83,7 @@ def main() -> None:
           "median abs side error L / T / R / B px |")
     print("|---|---:|---:|---:|---|")
     iou2 = np.array([r["iou2"] for r in rs])
-    for lo, hi in zip(BINS[:-1], BINS[1:]):
+    for lo, hi in pairwise(BINS):
         m = np.flatnonzero((iou2 >= lo) & (iou2 < hi))
         if not len(m):
             continue

@@ -1,12 +1,14 @@
-"""How far a detector's left and right box sides lie from the labels', per class (the figure
-`testbed lift --side-sd` takes, by which `fit` then weighs a detected box's sides).
+"""How far a detector's left and right box sides lie from the labels', per class (the figures
+`testbed lift --side-sd` and `--side-dof` take, by which `fit` then weighs a detected box's sides).
 
 Each detection scoring at least `fit`'s CLAIM_MIN_SCORE is matched to the label of its class (a
 Car to a Car or Van, a Pedestrian to a Pedestrian or Person_sitting) it overlaps most, at 2D IoU
 0.5 or more (each label taken once, best score first); a side counts where neither box touches
 the image border there. Prints, per class, the side errors' mean, root mean square (the sd a
 least-squares weight takes), robust sd (1.4826 x the median absolute deviation) and percentiles,
-left and right pooled, then top and bottom.
+left and right pooled, then top and bottom; and the Student-t centred on 0 that fits the left and
+right errors best (maximum likelihood: its scale and degrees of freedom, `--side-sd` and
+`--side-dof`).
 
     testbed detect --data D --split val --out P
     .venv/bin/python benchmarks/detector_sides.py --data D --split val --pred P
@@ -20,6 +22,7 @@ import argparse
 from pathlib import Path
 
 import numpy as np
+from scipy import stats
 
 from kitti.dataset import KittiDataset
 from kitti.iou import iou_2d
@@ -81,6 +84,10 @@ def main() -> None:
         print(f"{cls} (labels {', '.join(names)})")
         print(describe("left and right", lr))
         print(describe("top and bottom", tb))
+        if len(lr) >= 2:
+            dof, _, scale = stats.t.fit(lr, floc=0.0)
+            dofs = f"{dof:.2f} degrees of freedom" if dof < 1e3 else "Gaussian (no heavier tails)"
+            print(f"{'Student-t fit':>16}: left and right errors, scale {scale:.2f} px, {dofs}")
 
 
 if __name__ == "__main__":

@@ -68,7 +68,7 @@ from .placement import (
     height_from_box,
     length_from_sides,
     percentile,
-    side_misfit,
+    side_cost,
     translation,
 )
 from .points import FramePoints
@@ -233,20 +233,22 @@ def _box_for_yaw(ry: float, obj: _Returns, prior: Prior, small: bool, box: Box2D
     h, w, l = (float(v) for v in prior.dims)
     T, dims, pinned, misfit, length_cost = _size_and_place(
         obj.xz, obj.u, obj.height, h, w, l, ry, small, box.type == "Car", box.bbox,
-        view.sensor_xz, obj.centroid, view.P, view.image_size[0], plane, view.up, box.side_sigma)
-    return T, dims, pinned, misfit / box.side_sigma ** 2 + length_cost
+        view.sensor_xz, obj.centroid, view.P, view.image_size[0], plane, view.up, box.side_sigma,
+        box.side_dof)
+    return T, dims, pinned, misfit + length_cost
 
 
 @numba.njit(cache=True, nogil=True)
 def _size_and_place(xz: np.ndarray, u: np.ndarray, height: np.ndarray, h: float, w: float,
                     l: float, ry: float, small: bool, car: bool, bbox: np.ndarray,
                     sensor_xz: np.ndarray, centroid: np.ndarray, P: np.ndarray, width: int,
-                    plane: np.ndarray, up: np.ndarray,
-                    side_sigma: float) -> tuple[np.ndarray, np.ndarray, int, float, float]:
+                    plane: np.ndarray, up: np.ndarray, side_sigma: float,
+                    side_dof: float) -> tuple[np.ndarray, np.ndarray, int, float, float]:
     """The prior size (h, w, l) grown to hold the returns and brought to the roof, the faces, 2D
     sides and road fixing the centre (a `car`'s faces above its bumpers set in), and an unmeasured
-    length chosen with the 2D box (its sides' sd `side_sigma` px): the bottom centre, the size,
-    the pinned count, the box's misfit to the 2D box's sides (`side_misfit`) and its length's cost. One kernel: tried for every yaw
+    length chosen with the 2D box (its sides' scale `side_sigma` px, `side_dof`): the bottom
+    centre, the size, the pinned count, the box's misfit to the 2D box's sides (`side_cost`) and
+    its length's cost. One kernel: tried for every yaw
     hypothesis, its dozen small steps cost more in numpy's call overhead than in arithmetic."""
     c, s = np.cos(ry), np.sin(ry)
     pa = xz[:, 0] * c + xz[:, 1] * -s
@@ -260,13 +262,12 @@ def _size_and_place(xz: np.ndarray, u: np.ndarray, height: np.ndarray, h: float,
     if top > ROOF_SEEN * h:  # the roof is hit: the top lies at most ROOF_GAP above its returns
         h = min(max(h, top), top + ROOF_GAP)
     best = _place(xz, u, height, h, w, l, ry, small, car, bbox, sensor_xz, centroid, P, width,
-                  plane, up, np.inf, True, side_sigma)
+                  plane, up, np.inf, True, side_sigma, side_dof)
     if car and not small:  # the width across the mirrors, across the body below them, or the prior's
         for measure in (True, False):
             alt = _place(xz, u, height, h, w, l, ry, small, car, bbox, sensor_xz, centroid, P,
-                         width, plane, up, MIRROR_FOOT * h, measure, side_sigma)
-            if (alt[1][1] != best[1][1] and alt[3] / side_sigma ** 2 + alt[4]
-                    < best[3] / side_sigma ** 2 + best[4]):
+                         width, plane, up, MIRROR_FOOT * h, measure, side_sigma, side_dof)
+            if alt[1][1] != best[1][1] and alt[3] + alt[4] < best[3] + best[4]:
                 best = alt
     return best
 
@@ -275,8 +276,8 @@ def _size_and_place(xz: np.ndarray, u: np.ndarray, height: np.ndarray, h: float,
 def _place(xz: np.ndarray, u: np.ndarray, height: np.ndarray, h: float, w: float, l: float,
            ry: float, small: bool, car: bool, bbox: np.ndarray, sensor_xz: np.ndarray,
            centroid: np.ndarray, P: np.ndarray, width: int, plane: np.ndarray, up: np.ndarray,
-           body_top: float, measure_w: bool,
-           side_sigma: float) -> tuple[np.ndarray, np.ndarray, int, float, float]:
+           body_top: float, measure_w: bool, side_sigma: float,
+           side_dof: float) -> tuple[np.ndarray, np.ndarray, int, float, float]:
     """`_size_and_place` for one way of taking a width both sides of which show: centred on
     the returns lower than body_top, measured by them or not (measure_w; `placement.translation`).
     Whether a box's width holds the door mirrors is a labelling convention (the generator's does,
@@ -286,10 +287,10 @@ def _place(xz: np.ndarray, u: np.ndarray, height: np.ndarray, h: float, w: float
     length_cost = 0.0
     if not small and slide.any():  # length not measured: let the 2D box's width choose it
         T, dims[2] = length_from_sides(T, dims[0], dims[1], dims[2], ry, slide, bbox, P, width,
-                                       plane, up, side_sigma)
+                                       plane, up, side_sigma, side_dof)
         length_cost = ((dims[2] - l) / SIGMA_LENGTH) ** 2
     box7 = np.array([[T[0], T[1], T[2], dims[0], dims[1], dims[2], ry]])
-    return T, dims, pinned, side_misfit(box7, P, bbox, width, up)[0], length_cost
+    return T, dims, pinned, side_cost(box7, P, bbox, width, up, side_sigma, side_dof)[0], length_cost
 
 
 def lift_fit(boxes: list[Box2D], priors: list[Prior], pts: FramePoints, calib: Calibration,

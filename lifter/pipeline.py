@@ -5,6 +5,7 @@ has no file for the frame)."""
 from __future__ import annotations
 
 import hashlib
+import math
 from collections import OrderedDict
 from pathlib import Path
 
@@ -45,11 +46,14 @@ def detection_side_sigma(side_sd: float | None = None) -> float:
     return float(np.hypot(LABEL_SIDE_SIGMA_PX, side_sd or 0.0))
 
 
-def read_detections(det_dir: Path, fid: str, side_sd: float | None = None) -> list[Box2D]:
+def read_detections(det_dir: Path, fid: str, side_sd: float | None = None,
+                    side_dof: float | None = None) -> list[Box2D]:
     """The frame's detections; a frame without a file has none (a detector that writes only the
     frames where it found something, or an empty frame: the evaluation reads it the same way).
-    Their sides' sd is `detection_side_sigma(side_sd)`."""
+    Their sides' scale is `detection_side_sigma(side_sd)`, their errors Student-t with `side_dof`
+    degrees of freedom (None: Gaussian)."""
     sigma = detection_side_sigma(side_sd)
+    dof = math.inf if side_dof is None else float(side_dof)
     path = det_dir / f"{fid}.txt"
     if not path.exists():
         return []
@@ -59,7 +63,7 @@ def read_detections(det_dir: Path, fid: str, side_sd: float | None = None) -> li
             continue
         if o.score is None:
             raise KittiFormatError("detection line without a score", path, None, "score")
-        boxes.append(Box2D(o.type, o.bbox.copy(), float(o.score), sigma))
+        boxes.append(Box2D(o.type, o.bbox.copy(), float(o.score), sigma, dof))
     return boxes
 
 
@@ -123,13 +127,15 @@ def lift_frame(method: str, boxes: list[Box2D], priors: list[Prior], calib: Cali
 
 def lift_dataset(data: str | Path, detections: Path | None, method: str, out: str | Path,
                  split: str | None, priors: str = "net", weights: str | Path | None = None,
-                 progress: bool = True, mirror: bool = True, side_sd: float | None = None) -> int:
+                 progress: bool = True, mirror: bool = True, side_sd: float | None = None,
+                 side_dof: float | None = None) -> int:
     """Write out/<id>.txt for every frame of the split; returns the number of 3D boxes written.
 
     `detections`: a folder of detection result files, or None for the labels' boxes (oracle).
     `mirror`: the size/orientation network also reads each crop mirrored (`lifter.predictor`).
-    `side_sd`: how far the detections' left and right sides lie from the true boxes' (px RMS),
-    which `fit` then weighs them by; None weighs them as a label's."""
+    `side_sd`, `side_dof`: the scale (px) and Student-t degrees of freedom of the detections'
+    left and right sides' errors (`benchmarks/detector_sides.py` fits both), which `fit` then
+    weighs them by; None: a Gaussian sd / as a label's."""
     m = get_method(method)
     ds = KittiDataset(data)
     ids = ds.ids(split)
@@ -151,7 +157,7 @@ def lift_dataset(data: str | Path, detections: Path | None, method: str, out: st
             # that cannot be read stops the run with the file and field named, and the frames
             # written before it stay as they are
             labels = ds.labels(fid) if (det_dir is None or priors == "truth") else None
-            b2d = oracle_boxes(labels) if det_dir is None else read_detections(det_dir, fid, side_sd)
+            b2d = oracle_boxes(labels) if det_dir is None else read_detections(det_dir, fid, side_sd, side_dof)
             if priors == "truth":
                 pr = truth_priors(b2d, labels)
             else:

@@ -83,18 +83,34 @@ def corner_columns(x: float, y: float, z: float, h: float, w: float, l: float, r
 
 
 @numba.njit(cache=True, nogil=True)
-def side_misfit(boxes7: np.ndarray, P: np.ndarray, bbox: np.ndarray, width: int,
-                up: np.ndarray) -> np.ndarray:
-    """Per 3D box (N, 7) standing on `up`, the sum of squared pixel distances between its
-    projected left/right extremes and the 2D box's sides not cut by the image border."""
+def side_cost(boxes7: np.ndarray, P: np.ndarray, bbox: np.ndarray, width: int, up: np.ndarray,
+              sigma: float, dof: float) -> np.ndarray:
+    """Per 3D box (N, 7) standing on `up`, how far its projected left/right extremes miss the 2D
+    box's sides not cut by the image border, as minus twice their log-likelihood (up to a
+    constant) for sides of scale `sigma` px: Gaussian (dof inf) the sum of squared misses over
+    sigma^2; Student-t with `dof` degrees of freedom (dof + 1) log(1 + (miss / sigma)^2 / dof) a
+    side, which grows like the Gaussian's for small misses and only logarithmically for the far
+    ones (a detector's tail: `types.Box2D.side_dof`)."""
     err = np.zeros(len(boxes7))
+    gaussian = np.isinf(dof)
     for i in range(len(boxes7)):
         b = boxes7[i]
         u = corner_columns(b[0], b[1], b[2], b[3], b[4], b[5], b[6], P, up)
+        misses = np.zeros(2)
+        n = 0
         if bbox[0] > BORDER_LEFT:
-            err[i] += (u.min() - bbox[0]) ** 2
+            misses[n] = u.min() - bbox[0]
+            n += 1
         if bbox[2] < width - BORDER_RIGHT:
-            err[i] += (u.max() - bbox[2]) ** 2
+            misses[n] = u.max() - bbox[2]
+            n += 1
+        sq = 0.0
+        for k in range(n):
+            if gaussian:
+                sq += misses[k] ** 2
+            else:
+                sq += (dof + 1.0) * np.log(1.0 + (misses[k] / sigma) ** 2 / dof)
+        err[i] = sq / sigma ** 2 if gaussian else sq
     return err
 
 
@@ -301,11 +317,12 @@ def translation(pxz: np.ndarray, pu: np.ndarray, ph: np.ndarray, h: float, w: fl
 @numba.njit(cache=True, nogil=True)
 def length_from_sides(T: np.ndarray, h: float, w: float, l: float, ry: float, slide: np.ndarray,
                       bbox: np.ndarray, P: np.ndarray, width: int, plane: np.ndarray,
-                      up: np.ndarray, side_sigma: float) -> tuple[np.ndarray, float]:
+                      up: np.ndarray, side_sigma: float, side_dof: float) -> tuple[np.ndarray, float]:
     """A length the returns do not measure, chosen with the 2D box: every length of LENGTH_GRID x
     the prior, the box's anchoring face kept (the centre slides by `slide` per metre); the one
-    that best balances the outline's misfit to the 2D box's left and right sides (`side_sigma`
-    px each, `types.Box2D`) against its distance from the prior (SIGMA_LENGTH) wins. Seen from behind, the sides
+    that best balances the outline's misfit to the 2D box's left and right sides (`side_cost`
+    with the box's `side_sigma` and `side_dof`, `types.Box2D`) against its distance from the
+    prior (SIGMA_LENGTH) wins. Seen from behind, the sides
     hardly move with the length and the prior stands; seen from the side, they decide.
     Returns the centre and the length."""
     k = len(LENGTH_GRID)
@@ -315,7 +332,7 @@ def length_from_sides(T: np.ndarray, h: float, w: float, l: float, ry: float, sl
         x, z = T[0] + (li - l) * slide[0], T[2] + (li - l) * slide[1]
         boxes[i] = (x, road_y(x, z, plane), z, h, w, li, ry)
     cost = (((boxes[:, 5] - l) / SIGMA_LENGTH) ** 2
-            + side_misfit(boxes, P, bbox, width, up) / side_sigma ** 2)
+            + side_cost(boxes, P, bbox, width, up, side_sigma, side_dof))
     best = np.argmin(cost)
     return boxes[best, :3].copy(), boxes[best, 5]
 

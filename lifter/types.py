@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -19,7 +20,8 @@ class Box2D:
     type: str
     bbox: np.ndarray  # (4,) x1, y1, x2, y2 in image_2 pixels
     score: float
-    side_sigma: float = LABEL_SIDE_SIGMA_PX  # px, the sd of its left and right sides: `fit` weighs them by it
+    side_sigma: float = LABEL_SIDE_SIGMA_PX  # px, the scale of its left and right sides' errors
+    side_dof: float = math.inf  # their Student-t degrees of freedom (inf: Gaussian; `placement.side_cost`)
 
     @property
     def centre(self) -> tuple[float, float]:

@@ -28,21 +28,28 @@ from .options import data_option, split_name, split_option
 @click.option("--mirror/--no-mirror", default=True, show_default=True,
               help="The network reads each crop and its mirror image (twice its work).")
 @click.option("--side-sd", type=click.FloatRange(min=0.0), metavar="PX",
-              help="How far the detections' left and right box sides lie from the true boxes' "
-                   "(RMS, pixels; benchmarks/detector_sides.py measures it), which `fit` then "
-                   "weighs them by [default: weighed as a label's].")
+              help="How far the detections' left and right box sides lie from the true boxes': "
+                   "the sd of their errors, or with --side-dof the Student-t's scale (pixels; "
+                   "benchmarks/detector_sides.py measures both), which `fit` then weighs them by "
+                   "[default: weighed as a label's].")
+@click.option("--side-dof", type=click.FloatRange(min=0.0, min_open=True), metavar="NU",
+              help="The detections' side errors are Student-t with NU degrees of freedom (heavy "
+                   "tails: a side far off pulls the box less); needs --side-sd [default: Gaussian].")
 def lift(data: Path, boxes: str, method: str, split: str, out: Path, priors: str,
-         weights: Path | None, mirror: bool, side_sd: float | None) -> None:
+         weights: Path | None, mirror: bool, side_sd: float | None, side_dof: float | None) -> None:
     """Lift the 2D boxes of every frame of the --split of --data to 3D with METHOD."""
     from kitti.errors import KittiFormatError
     from lifter.pipeline import lift_dataset
 
     try:
         detections = None if boxes == "gt" else Path(boxes)
-        if detections is None and side_sd is not None:
-            raise click.UsageError("--side-sd describes detected boxes: it needs --boxes FOLDER")
+        if detections is None and (side_sd is not None or side_dof is not None):
+            raise click.UsageError("--side-sd and --side-dof describe detected boxes: they need "
+                                   "--boxes FOLDER")
+        if side_dof is not None and side_sd is None:
+            raise click.UsageError("--side-dof needs --side-sd, the Student-t's scale")
         n = lift_dataset(data, detections, method, out, split_name(split), priors=priors, weights=weights,
-                         mirror=mirror, side_sd=side_sd)
+                         mirror=mirror, side_sd=side_sd, side_dof=side_dof)
     except (KittiFormatError, ValueError, FileNotFoundError) as e:
         raise click.ClickException(str(e)) from None
     click.echo(f"{n} 3D boxes written to {out}")

@@ -204,6 +204,7 @@ def test_a_front_views_width_is_the_one_the_2d_box_outlines(labelled_w):
     bbox = project_boxes(label[None], calib, IMAGE_SIZE, upright="lidar")[0]
     sensor = calib.lidar_to_rect(np.zeros((1, 3)))[0][[0, 2]]
     T, dims, *_ = _size_and_place(xz, u, height, 1.5, 1.7, 4.0, np.pi / 2, False, True, bbox,
-                                  sensor, xz.mean(axis=0), P, IMAGE_SIZE[0], PLANE, up, LABEL_SIDE_SIGMA_PX)
+                                  sensor, xz.mean(axis=0), P, IMAGE_SIZE[0], PLANE, up, LABEL_SIDE_SIGMA_PX,
+                                  np.inf)
     assert dims[1] == pytest.approx(labelled_w, abs=1e-9)
     assert T[0] == pytest.approx(body[0], abs=1e-3)  # the 2D sides' rows and the centroid's pull

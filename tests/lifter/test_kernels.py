@@ -8,7 +8,7 @@ from kitti.boxes import UNIT_CORNERS, box_corners, project_boxes, wrap_angle
 from kitti.calib import Calibration
 from lifter import fit, ground, mono, road
 from lifter.mono import box_up_of
-from lifter.placement import CAMERA_UP, length_from_sides, side_misfit, translation
+from lifter.placement import CAMERA_UP, length_from_sides, side_cost, translation
 
 CALIB = Calibration.kitti_default()
 P = CALIB.P(2)
@@ -173,7 +173,7 @@ def test_size_and_place_matches_numpy():
         h, w, l = car[3:6] + rng.normal(0, 0.2, 3)
         ry, small = car[6] + rng.normal(0, 0.05), trial % 5 == 0
         is_car = trial % 3 != 0
-        sigma = 2.0 if trial % 2 else 10.5  # a label's sides' sd, a detection's
+        sigma, dof = (2.0, np.inf) if trial % 2 else (3.6, 1.6)  # a label's sides, a detection's
         centroid = xz.mean(axis=0)
         pa = xz @ np.array([np.cos(ry), -np.sin(ry)])
         pb = xz @ np.array([np.sin(ry), np.cos(ry)])
@@ -196,15 +196,15 @@ def test_size_and_place_matches_numpy():
                                                  body_top, measure)
             length_cost = 0.0
             if not small and slide.any():
-                T, dims[2] = length_from_sides(T, *dims, ry, slide, bbox, P, SIZE[0], plane, up, sigma)
+                T, dims[2] = length_from_sides(T, *dims, ry, slide, bbox, P, SIZE[0], plane, up, sigma, dof)
                 length_cost = ((dims[2] - l_ref) / fit.SIGMA_LENGTH) ** 2
-            misfit = side_misfit(np.array([[*T, *dims, ry]]), P, bbox, SIZE[0], up)[0]
-            cost = misfit / sigma ** 2 + length_cost
+            misfit = side_cost(np.array([[*T, *dims, ry]]), P, bbox, SIZE[0], up, sigma, dof)[0]
+            cost = misfit + length_cost
             if best is None or (dims[1] != best[1][1] and cost < best[5]):
                 best = (T, dims, pinned, misfit, length_cost, cost)
         T, dims, pinned, misfit, length_cost, _ = best
         out = fit._size_and_place(xz, u, height, h, w, l, ry, small, is_car, bbox, sensor,
-                                  centroid, P, SIZE[0], plane, up, sigma)
+                                  centroid, P, SIZE[0], plane, up, sigma, dof)
         np.testing.assert_allclose(out[0], T, **TIGHT)
         np.testing.assert_allclose(out[1], dims, **TIGHT)
         assert out[2] == pinned

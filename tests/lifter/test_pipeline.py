@@ -128,8 +128,8 @@ def test_a_frame_s_priors_are_computed_once_for_every_lift_of_it(dataset, tmp_pa
 
 def test_side_sd_sets_the_sigma_fit_weighs_detected_sides_by(dataset, tmp_path, monkeypatch):
     """Detected boxes reach `fit` weighed as a label's sides, or with the detector's side error
-    (--side-sd) and a label's in quadrature; labels with a label's own; --side-sd without
-    detection files is refused."""
+    (--side-sd, Student-t with --side-dof) and a label's in quadrature; labels with a label's
+    own; --side-sd or --side-dof without detection files, or --side-dof alone, is refused."""
     det = tmp_path / "det"
     objs = read_label(dataset / "training" / "label_2" / "000000.txt")
     for o in objs:
@@ -138,16 +138,21 @@ def test_side_sd_sets_the_sigma_fit_weighs_detected_sides_by(dataset, tmp_path, 
     seen = []
     lift = lifter.fit.lift_fit
     monkeypatch.setattr(lifter.fit, "lift_fit",
-                        lambda boxes, *a, **kw: seen.append([b.side_sigma for b in boxes]) or lift(boxes, *a, **kw))
+                        lambda boxes, *a, **kw: seen.append([(b.side_sigma, b.side_dof) for b in boxes])
+                        or lift(boxes, *a, **kw))
     base = ["lift", "--data", str(dataset), "--method", "fit", "--split", "val", "--priors", "truth"]
-    for flags in (["--boxes", str(det)], ["--boxes", str(det), "--side-sd", "1.5"], ["--boxes", "gt"]):
+    for flags in (["--boxes", str(det)], ["--boxes", str(det), "--side-sd", "1.5"],
+                  ["--boxes", str(det), "--side-sd", "1.5", "--side-dof", "2"], ["--boxes", "gt"]):
         r = CliRunner().invoke(cli, [*base, *flags, "--out", str(tmp_path / "o")])
         assert r.exit_code == 0, r.output
-    label = lifter.types.LABEL_SIDE_SIGMA_PX
-    assert seen[0] == [label] * 2 and seen[1] == pytest.approx([2.5] * 2)  # hypot(2, 1.5)
-    assert seen[2] == [label] * 2 and seen[3] == [label]  # the labels of frames 000000 and 000001
-    r = CliRunner().invoke(cli, [*base, "--boxes", "gt", "--side-sd", "3", "--out", str(tmp_path / "x")])
-    assert r.exit_code != 0 and "--side-sd" in r.output
+    label, inf = lifter.types.LABEL_SIDE_SIGMA_PX, float("inf")
+    assert seen[0] == [(label, inf)] * 2  # hypot(2, 1.5) = 2.5 below
+    assert [s for s, _ in seen[1]] == pytest.approx([2.5] * 2) and [d for _, d in seen[1]] == [inf] * 2
+    assert [s for s, _ in seen[2]] == pytest.approx([2.5] * 2) and [d for _, d in seen[2]] == [2.0] * 2
+    assert seen[3] == [(label, inf)] * 2 and seen[4] == [(label, inf)]  # frames 000000 and 000001
+    for flags in (["--boxes", "gt", "--side-sd", "3"], ["--boxes", str(det), "--side-dof", "2"]):
+        r = CliRunner().invoke(cli, [*base, *flags, "--out", str(tmp_path / "x")])
+        assert r.exit_code != 0 and "--side-" in r.output
 
 
 def test_missing_detection_file_is_an_empty_frame(dataset, tmp_path):

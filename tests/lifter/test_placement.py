@@ -13,7 +13,7 @@ from lifter.placement import (
     SIGMA_LENGTH,
     corner_columns,
     length_from_sides,
-    side_misfit,
+    side_cost,
     translation,
 )
 from lifter.types import LABEL_SIDE_SIGMA_PX
@@ -63,15 +63,15 @@ def test_corner_columns_on_the_lidars_up_are_those_of_kittis_box():
 
 def test_side_misfit_is_the_squared_pixel_distance_of_the_uncut_sides():
     bbox = project_boxes(CAR[None], CALIB, (WIDTH, 375))[0]
-    assert side_misfit(CAR[None], P, bbox, WIDTH, CAMERA_UP)[0] < 1e-18
+    assert side_cost(CAR[None], P, bbox, WIDTH, CAMERA_UP, 1.0, np.inf)[0] < 1e-18
     moved = bbox + np.array([-3.0, 0.0, 4.0, 0.0])  # 3 px left, 4 px right: 9 + 16
-    assert abs(side_misfit(CAR[None], P, moved, WIDTH, CAMERA_UP)[0] - 25.0) < 1e-9
+    assert abs(side_cost(CAR[None], P, moved, WIDTH, CAMERA_UP, 1.0, np.inf)[0] - 25.0) < 1e-9
     cut = moved.copy()
     cut[0] = 0.0  # the left side at the image border says nothing about the box
-    assert abs(side_misfit(CAR[None], P, cut, WIDTH, CAMERA_UP)[0] - 16.0) < 1e-9
+    assert abs(side_cost(CAR[None], P, cut, WIDTH, CAMERA_UP, 1.0, np.inf)[0] - 16.0) < 1e-9
     kitti = project_boxes(CAR[None], CALIB, (WIDTH, 375), upright="lidar")[0]
-    assert side_misfit(CAR[None], P, kitti, WIDTH, LIDAR_UP)[0] < 0.02 ** 2
-    assert side_misfit(CAR[None], P, kitti, WIDTH, CAMERA_UP)[0] > 0.1
+    assert side_cost(CAR[None], P, kitti, WIDTH, LIDAR_UP, 1.0, np.inf)[0] < 0.02 ** 2
+    assert side_cost(CAR[None], P, kitti, WIDTH, CAMERA_UP, 1.0, np.inf)[0] > 0.1
 
 
 # the 2D box as the label box's own projection, and as KITTI's (the box upright in the LiDAR's frame)
@@ -106,7 +106,7 @@ def test_length_from_sides_corrects_a_long_prior_in_a_side_view(upright, up):
     T_prior = car[:3].copy()
     T_prior[[0, 2]] += 0.5 * slide
     T, length = length_from_sides(T_prior, *car[3:5], l_prior, car[6], slide, bbox, P, WIDTH, PLANE,
-                                  up, LABEL_SIDE_SIGMA_PX)
+                                  up, LABEL_SIDE_SIGMA_PX, np.inf)
     assert abs(length - car[5]) < 0.05
     np.testing.assert_allclose(T, car[:3], atol=0.03)
 
@@ -129,8 +129,30 @@ def test_length_from_sides_weighs_a_side_error_by_the_boxs_side_sigma():
     step = 0.01 * car[5]
     for sigma in (LABEL_SIDE_SIGMA_PX, detection_side_sigma(10.3)):
         length = length_from_sides(car[:3].copy(), *car[3:6], car[6], slide, bbox, P, WIDTH, PLANE,
-                                   LIDAR_UP, sigma)[1]
+                                   LIDAR_UP, sigma, np.inf)[1]
         expected = 6.0 * k / (k ** 2 + (sigma / SIGMA_LENGTH) ** 2)
         assert abs(length - car[5] - expected) <= step
     assert 6.0 * k / (k ** 2 + (LABEL_SIDE_SIGMA_PX / SIGMA_LENGTH) ** 2) > 0.25
     assert 6.0 * k / (k ** 2 + (detection_side_sigma(10.3) / SIGMA_LENGTH) ** 2) < 0.1
+
+
+def test_side_cost_is_gaussian_near_and_heavy_tailed_far():
+    """Student-t sides: (dof + 1) log(1 + (miss / sigma)^2 / dof) a side, (dof + 1) / dof times
+    the Gaussian's (miss / sigma)^2 for a miss far under sigma, growing with the log of it far
+    out, so a side 30 px off costs a ninth of the Gaussian's; sides cut by the border cost
+    nothing either way."""
+    bbox = project_boxes(CAR[None], CALIB, (WIDTH, 375), upright="camera")[0]
+    sigma, dof = 3.0, 1.6
+    for miss in (0.3, 30.0):
+        moved = bbox + np.array([0.0, 0.0, miss, 0.0])
+        t = side_cost(CAR[None], P, moved, WIDTH, CAMERA_UP, sigma, dof)[0]
+        g = side_cost(CAR[None], P, moved, WIDTH, CAMERA_UP, sigma, np.inf)[0]
+        assert g == pytest.approx((miss / sigma) ** 2, rel=1e-6)
+        assert t == pytest.approx((dof + 1) * np.log1p((miss / sigma) ** 2 / dof), rel=1e-6)
+        if miss < sigma:
+            assert t == pytest.approx(g * (dof + 1) / dof, rel=0.01)
+        else:
+            assert t < g / 9
+    cut = bbox.copy()
+    cut[0], cut[2] = 0.0, WIDTH - 1.0
+    assert side_cost(CAR[None], P, cut, WIDTH, CAMERA_UP, sigma, dof)[0] == 0.0
