@@ -40,9 +40,9 @@ under CLAIM_MIN_SCORE after the others):
    pixel of its bottom edge).
 
 Step 2 is `clusters.object_returns`, steps 4-5 are `placement`'s kernels. Wherever the 2D box's
-left and right sides are weighed (steps 3-4), their sd is the box's own (`Box2D.side_sigma`): a
-label's 2 px, a detection's that or, where its detector's error is given, both in quadrature
-(`lifter.pipeline.detection_side_sigma`).
+left and right sides are weighed (steps 3-4), their errors are the box's own (`Box2D.side_sigma`,
+`side_dof`): a label's Gaussian 2 px; a detection's its detector's besides, a Student-t whose
+heavy tails let a side far off go (`lifter.pipeline.SHIPPED_SIDE_ERRORS`, `placement.side_cost`).
 """
 
 from __future__ import annotations

@@ -9,7 +9,7 @@ import numpy as np
 
 # px, how far a labelled 2D box's left and right sides lie from the lifter's box projected: the
 # body's outline lies 1-3 px inside the box's corners on the testbed's cars. A detected box's
-# sides may be given their detector's error besides (lifter.pipeline.detection_side_sigma).
+# sides carry their detector's errors besides (lifter.pipeline.SHIPPED_SIDE_ERRORS).
 LABEL_SIDE_SIGMA_PX = 2.0
 
 

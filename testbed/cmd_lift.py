@@ -30,8 +30,9 @@ from .options import data_option, split_name, split_option
 @click.option("--side-sd", type=click.FloatRange(min=0.0), metavar="PX",
               help="How far the detections' left and right box sides lie from the true boxes': "
                    "the sd of their errors, or with --side-dof the Student-t's scale (pixels; "
-                   "benchmarks/detector_sides.py measures both), which `fit` then weighs them by "
-                   "[default: weighed as a label's].")
+                   "benchmarks/detector_sides.py measures both), which `fit` then weighs them by; "
+                   "0: as a label's [default: the shipped detector's, "
+                   "lifter.pipeline.SHIPPED_SIDE_ERRORS].")
 @click.option("--side-dof", type=click.FloatRange(min=0.0, min_open=True), metavar="NU",
               help="The detections' side errors are Student-t with NU degrees of freedom (heavy "
                    "tails: a side far off pulls the box less); needs --side-sd [default: Gaussian].")

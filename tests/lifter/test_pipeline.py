@@ -127,9 +127,10 @@ def test_a_frame_s_priors_are_computed_once_for_every_lift_of_it(dataset, tmp_pa
 
 
 def test_side_sd_sets_the_sigma_fit_weighs_detected_sides_by(dataset, tmp_path, monkeypatch):
-    """Detected boxes reach `fit` weighed as a label's sides, or with the detector's side error
-    (--side-sd, Student-t with --side-dof) and a label's in quadrature; labels with a label's
-    own; --side-sd or --side-dof without detection files, or --side-dof alone, is refused."""
+    """Detected boxes reach `fit` with the shipped detector's side errors for their class (a
+    Student-t), or the --side-sd given (Student-t with --side-dof, else Gaussian; 0: as a
+    label's), each with a label's 2 px in quadrature; labels with a label's own. --side-sd or
+    --side-dof without detection files, or --side-dof alone, is refused."""
     det = tmp_path / "det"
     objs = read_label(dataset / "training" / "label_2" / "000000.txt")
     for o in objs:
@@ -141,15 +142,19 @@ def test_side_sd_sets_the_sigma_fit_weighs_detected_sides_by(dataset, tmp_path, 
                         lambda boxes, *a, **kw: seen.append([(b.side_sigma, b.side_dof) for b in boxes])
                         or lift(boxes, *a, **kw))
     base = ["lift", "--data", str(dataset), "--method", "fit", "--split", "val", "--priors", "truth"]
-    for flags in (["--boxes", str(det)], ["--boxes", str(det), "--side-sd", "1.5"],
+    for flags in (["--boxes", str(det)], ["--boxes", str(det), "--side-sd", "0"],
+                  ["--boxes", str(det), "--side-sd", "1.5"],
                   ["--boxes", str(det), "--side-sd", "1.5", "--side-dof", "2"], ["--boxes", "gt"]):
         r = CliRunner().invoke(cli, [*base, *flags, "--out", str(tmp_path / "o")])
         assert r.exit_code == 0, r.output
     label, inf = lifter.types.LABEL_SIDE_SIGMA_PX, float("inf")
-    assert seen[0] == [(label, inf)] * 2  # hypot(2, 1.5) = 2.5 below
-    assert [s for s, _ in seen[1]] == pytest.approx([2.5] * 2) and [d for _, d in seen[1]] == [inf] * 2
-    assert [s for s, _ in seen[2]] == pytest.approx([2.5] * 2) and [d for _, d in seen[2]] == [2.0] * 2
-    assert seen[3] == [(label, inf)] * 2 and seen[4] == [(label, inf)]  # frames 000000 and 000001
+    scale, dof = lifter.pipeline.SHIPPED_SIDE_ERRORS["Car"]
+    assert [s for s, _ in seen[0]] == pytest.approx([np.hypot(label, scale)] * 2)
+    assert [d for _, d in seen[0]] == [dof] * 2
+    assert seen[1] == [(label, inf)] * 2  # hypot(2, 1.5) = 2.5 below
+    assert [s for s, _ in seen[2]] == pytest.approx([2.5] * 2) and [d for _, d in seen[2]] == [inf] * 2
+    assert [s for s, _ in seen[3]] == pytest.approx([2.5] * 2) and [d for _, d in seen[3]] == [2.0] * 2
+    assert seen[4] == [(label, inf)] * 2 and seen[5] == [(label, inf)]  # frames 000000 and 000001
     for flags in (["--boxes", "gt", "--side-sd", "3"], ["--boxes", str(det), "--side-dof", "2"]):
         r = CliRunner().invoke(cli, [*base, *flags, "--out", str(tmp_path / "x")])
         assert r.exit_code != 0 and "--side-" in r.output

@@ -61,7 +61,7 @@ def test_corner_columns_on_the_lidars_up_are_those_of_kittis_box():
     assert np.abs(u - corner_columns(*CAR, P, CAMERA_UP)).max() > 0.5
 
 
-def test_side_misfit_is_the_squared_pixel_distance_of_the_uncut_sides():
+def test_gaussian_side_cost_at_sigma_1_is_the_squared_pixel_distance_of_the_uncut_sides():
     bbox = project_boxes(CAR[None], CALIB, (WIDTH, 375))[0]
     assert side_cost(CAR[None], P, bbox, WIDTH, CAMERA_UP, 1.0, np.inf)[0] < 1e-18
     moved = bbox + np.array([-3.0, 0.0, 4.0, 0.0])  # 3 px left, 4 px right: 9 + 16
