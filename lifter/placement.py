@@ -96,22 +96,22 @@ def side_cost(boxes7: np.ndarray, P: np.ndarray, bbox: np.ndarray, width: int, u
     for i in range(len(boxes7)):
         b = boxes7[i]
         u = corner_columns(b[0], b[1], b[2], b[3], b[4], b[5], b[6], P, up)
-        misses = np.zeros(2)
-        n = 0
+        total = 0.0
         if bbox[0] > BORDER_LEFT:
-            misses[n] = u.min() - bbox[0]
-            n += 1
+            total += _side_term(u.min() - bbox[0], sigma, dof, gaussian)
         if bbox[2] < width - BORDER_RIGHT:
-            misses[n] = u.max() - bbox[2]
-            n += 1
-        sq = 0.0
-        for k in range(n):
-            if gaussian:
-                sq += misses[k] ** 2
-            else:
-                sq += (dof + 1.0) * np.log(1.0 + (misses[k] / sigma) ** 2 / dof)
-        err[i] = sq / sigma ** 2 if gaussian else sq
+            total += _side_term(u.max() - bbox[2], sigma, dof, gaussian)
+        err[i] = total / sigma ** 2 if gaussian else total
     return err
+
+
+@numba.njit(cache=True, nogil=True)
+def _side_term(miss: float, sigma: float, dof: float, gaussian: bool) -> float:
+    """One side's term of `side_cost`: its squared miss (px^2, the sum divided by sigma^2 after),
+    or the Student-t's (dof + 1) log(1 + (miss / sigma)^2 / dof)."""
+    if gaussian:
+        return miss ** 2
+    return (dof + 1.0) * np.log(1.0 + (miss / sigma) ** 2 / dof)
 
 
 @numba.njit(cache=True, nogil=True)
