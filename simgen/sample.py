@@ -42,9 +42,10 @@ PARKED_GAP = (0.5, 1.0)
 CORNER_CLEAR = 5.0
 KERB_GAP = (0.05, 0.30)
 PARKED_MARGIN = 0.2
-# Standing queues (_Traffic.queue): the standstill gap of car following, 2 m in the Intelligent
-# Driver Model (Treiber, Hennecke and Helbing, Phys. Rev. E 62, 2000), drawn 1-3 m. Where a queue
-# begins (20 m behind the LiDAR to 5 m ahead) and how far it reaches (15-60 m): a judgement.
+# Standing queues (_Traffic.queue, _Traffic._column): the standstill gap of car following, 2 m in
+# the Intelligent Driver Model (Treiber, Hennecke and Helbing, Phys. Rev. E 62, 2000), drawn 1-3 m.
+# Where a queue beside the ego begins (20 m behind the LiDAR to 5 m ahead) and how far a queue
+# reaches (15-60 m): a judgement.
 QUEUE_GAP = (1.0, 3.0)
 QUEUE_START = (-20.0, 5.0)
 QUEUE_LENGTH = (15.0, 60.0)
@@ -219,11 +220,12 @@ class _Traffic:
         self.actors.append(Actor(len(self.actors) + 1, cls, build_actor_parts(recipe), pose,
                                  velocity=vel * heading, yaw_rate=yaw_rate, recipe=recipe))
 
-    def lead(self, share: float, headway_s: float, ego_speed: float) -> None:
+    def lead(self, share: float, headway_s: float, ego_speed: float, column: float = 0.0) -> None:
         """With probability `share`, a vehicle ahead of the ego in its lane, moving at the ego's
         speed, its rear the distance the ego covers in `headway_s` beyond the ego's free lane. In
-        urban car following, time gaps are mostly 1-3 s (the two-second rule). No draw at share 0,
-        so specs without car following keep their worlds."""
+        urban car following, time gaps are mostly 1-3 s (the two-second rule). With probability
+        `column` it is the last of a column (`_column`). No draw at share 0 or column 0, so specs
+        without car following or columns keep their worlds."""
         if not (share > 0 and self.spec.rig.type == "onboard" and self.spec.traffic.mix):
             return
         rng, road = self.rng, self.road
@@ -238,6 +240,28 @@ class _Traffic:
             return
         self.add(cls, recipe, road.pose(s, d, 0.0, rng.normal(0, self.sd_yaw)), ego_speed,
                  ego_speed * road.curvature)
+        if column > 0 and rng.uniform() < column:
+            self._column(s + recipe["dims"][2] / 2, headway_s, ego_speed)
+
+    def _column(self, front: float, headway_s: float, speed: float) -> None:
+        """Vehicles nose to tail ahead of the lead in the ego's lane, from its `front` over
+        QUEUE_LENGTH, all at the ego's speed: each the standstill gap (QUEUE_GAP) plus the distance
+        covered in `headway_s` behind the next. Standing, a queue at a light or in a jam, seen
+        from behind with each car hiding part of the next; moving, a platoon. It stops short of a
+        cross street, as the queue beside the ego does."""
+        road, rng = self.road, self.rng
+        s, end = front, front + rng.uniform(*QUEUE_LENGTH)
+        while True:
+            s += rng.uniform(*QUEUE_GAP) + speed * headway_s
+            cls = _pick_class(self.spec.traffic.mix, rng)
+            recipe = _recipe(cls, self.spec, rng)
+            l = recipe["dims"][2]
+            if s >= min(end, self.s_hi) or road.in_cross_street(s + l / 2, l / 2 + 2.0):
+                return
+            d = road.lane_centre(road.ego_lane) + float(np.clip(rng.normal(0, self.sd_lat), -0.4, 0.4))
+            self.add(cls, recipe, road.pose(s + l / 2, d, 0.0, rng.normal(0, self.sd_yaw)), speed,
+                     speed * road.curvature)
+            s += l
 
     def moving(self, dens: float) -> None:
         """Moving traffic, lane by lane; gaps exponential with the spec's mean density."""
@@ -380,7 +404,7 @@ def _place_actors(spec: SceneSpec, v: dict, road: RoadLayout, obstacles: list[Ob
     """Every actor of the frame, in the fixed order that makes the seed reproducible."""
     traffic = _Traffic(spec, v, road, obstacles, rng, frontage)
     traffic.lead(float(v["traffic.lead_vehicle"]), float(v["traffic.headway_s"]),
-                 float(v.get("rig.ego_speed", 0.0)))
+                 float(v.get("rig.ego_speed", 0.0)), float(v["traffic.column"]))
     traffic.queue(float(v["traffic.queue"]))
     traffic.moving(float(v["traffic.vehicles_per_100m"]))
     traffic.crossing(float(v["traffic.vehicles_per_100m"]))

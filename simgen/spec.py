@@ -97,6 +97,10 @@ class TrafficSpec(Strict):
     # the ego in its lane, at the ego's speed, `headway_s` seconds ahead of the ego's free lane.
     lead_vehicle: factor(float, 0.0, 1.0) = 0.0
     headway_s: factor(float, 0.0, 10.0) = 2.0
+    # The probability that the lead vehicle is the last of a column in the ego's lane, vehicles nose
+    # to tail ahead of it at the ego's speed (simgen.sample._Traffic._column): standing, the queue
+    # the ego waits in at a light or in a jam; moving, a platoon.
+    column: factor(float, 0.0, 1.0) = 0.0
     car_park_occupancy: factor(float, 0.0, 1.0) = 0.5  # share of car-park stalls taken (frontage)
     speed: factor(float, 0.0, 40.0) = 12.0  # m/s of moving traffic
     # The share of the vehicles moving faster than 0.5 m/s whose stop lamps are lit, as they brake

@@ -1,12 +1,13 @@
-"""Car following (traffic.lead_vehicle): the vehicle ahead of the ego stands where the time gap
-puts it, moves with the ego, and a spec without it keeps its worlds."""
+"""Car following (traffic.lead_vehicle, traffic.column): the vehicle ahead of the ego stands where
+the time gap puts it, moves with the ego, a column ahead of it keeps its gaps, and a spec without
+them keeps its worlds."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from simgen.sample import EGO_FREE_AHEAD, MARGIN, sample_world
+from simgen.sample import EGO_FREE_AHEAD, MARGIN, QUEUE_GAP, QUEUE_LENGTH, sample_world
 from simgen.spec import spec_from_dict
 
 
@@ -55,3 +56,37 @@ def test_no_leader_beyond_the_traffics_reach():
     world = sample_world(spec, 4, 0)  # 8 m/s x 10 s puts its rear 86.6 m ahead
     assert not any(abs(a.pose[1, 3]) < 0.5 and a.pose[0, 3] > EGO_FREE_AHEAD for a in world.actors
                    if a.cls in ("Car", "Van", "Truck"))
+
+
+def _in_ego_lane(world) -> list:
+    """The vehicles ahead in the ego's lane (its centre line is y = 0), nearest first."""
+    ahead = [a for a in world.actors if a.cls in ("Car", "Van", "Truck") and abs(a.pose[1, 3]) < 0.5
+             and a.pose[0, 3] > 0]
+    return sorted(ahead, key=lambda a: a.pose[0, 3])
+
+
+@pytest.mark.parametrize("speed", [0.0, 8.0])
+def test_a_column_ahead_of_the_leader_keeps_the_standstill_gap_plus_the_time_gap(speed):
+    spec = _spec(lead_vehicle=1.0, column=1.0, headway_s=1.5, vehicles_per_100m=0.0)
+    spec = spec.model_copy(update={"rig": spec.rig.model_copy(update={"ego_speed": speed})})
+    for frame in range(3):
+        world = sample_world(spec, 4, frame)
+        column = _in_ego_lane(world)
+        assert len(column) >= 2
+        front = [a.pose[0, 3] + a.recipe["dims"][2] / 2 for a in column]
+        rear = [a.pose[0, 3] - a.recipe["dims"][2] / 2 for a in column]
+        gaps = np.subtract(rear[1:], front[:-1]) - speed * 1.5
+        # Each gap is a standstill gap drawn from QUEUE_GAP (to rounding), each vehicle at the
+        # ego's speed; the column ends within QUEUE_LENGTH of the leader's front.
+        assert np.all(gaps >= QUEUE_GAP[0] - 1e-9) and np.all(gaps <= QUEUE_GAP[1] + 1e-9)
+        assert rear[-1] - front[0] < QUEUE_LENGTH[1]
+        for a in column:
+            assert np.allclose(a.velocity, world.ego_velocity, atol=1e-12)
+
+
+def test_a_spec_without_columns_keeps_its_worlds():
+    a = sample_world(_spec(lead_vehicle=1.0, vehicles_per_100m=0.0), 4, 0)
+    b = sample_world(_spec(lead_vehicle=1.0, vehicles_per_100m=0.0, column=0.0), 4, 0)
+    assert [x.cls for x in a.actors] == [x.cls for x in b.actors]
+    assert all(np.array_equal(p.pose, q.pose) for p, q in zip(a.actors, b.actors))
+    assert len(_in_ego_lane(a)) == 1

@@ -3,7 +3,11 @@
 from __future__ import annotations
 
 import json
+import struct
+import zlib
 from pathlib import Path
+
+import cv2
 
 import numpy as np
 import pytest
@@ -11,7 +15,8 @@ import pytest
 from kitti.dataset import KittiDataset
 from kitti.derived import dump_json
 from kitti.planes import read_plane
-from simgen.generate import Job, decode_depth, frame_files, generate, make_frame
+from simgen.generate import (PNG_CAMERA, PNG_DEPTH, PNG_INSTANCE, Job, decode_depth, encode_png, frame_files,
+                             generate, make_frame)
 from simgen.meta import world_from_meta, world_to_meta
 from simgen.road import RoadLayout
 from simgen.sample import sample_world
@@ -83,7 +88,6 @@ def test_dataset_reads_back_with_the_kitti_package(spec, tmp_path):
     plane = read_plane(tmp_path / "training/planes/000003.txt")
     road = RoadLayout(**world.scenery["road"])  # the street rises or falls: a fitted plane
     np.testing.assert_allclose(plane, world.rig.road_plane_rect(road.fitted_plane()), atol=1e-6)
-    import cv2
     depth = decode_depth(cv2.imread(str(tmp_path / "training/depth_2/000003.png"), cv2.IMREAD_UNCHANGED))
     inst = cv2.imread(str(tmp_path / "training/instance_2/000003.png"), cv2.IMREAD_UNCHANGED)
     assert inst.dtype == np.uint16 and depth.shape == inst.shape == (375, 1242)
@@ -92,3 +96,31 @@ def test_dataset_reads_back_with_the_kitti_package(spec, tmp_path):
     for a in labelled:  # every labelled actor owns exactly its visible pixels in instance_2
         assert int((inst == a["id"]).sum()) == a["visible_px"] > 0
         assert np.all(depth[inst == a["id"]] > 0)
+
+
+def _row_filters(png: bytes, row_bytes: int) -> set[int]:
+    """The filter type byte that starts each row of a PNG's decompressed image data."""
+    pos, idat = 8, b""
+    while pos < len(png):
+        (n,), kind = struct.unpack(">I", png[pos:pos + 4]), png[pos + 4:pos + 8]
+        if kind == b"IDAT":
+            idat += png[pos + 8:pos + 8 + n]
+        pos += 12 + n
+    raw = zlib.decompress(idat)
+    return {raw[i] for i in range(0, len(raw), row_bytes + 1)}
+
+
+@pytest.mark.parametrize("kind", ["camera", "depth", "instance"])
+def test_png_files_hold_the_exact_pixels_with_one_row_filter(kind):
+    rng = np.random.default_rng(3)
+    img, setting, png_filter = {
+        "camera": (rng.integers(0, 256, (37, 53, 3), dtype=np.uint8), PNG_CAMERA, 4),  # Paeth
+        "depth": (np.where(rng.random((37, 53)) < 0.2, 0, rng.integers(1, 65536, (37, 53))).astype(np.uint16),
+                  PNG_DEPTH, 2),  # Up
+        "instance": (np.repeat(rng.integers(0, 65536, (37, 1)), 53, axis=1).astype(np.uint16),
+                     PNG_INSTANCE, 2),
+    }[kind]
+    png = encode_png(img, setting)
+    np.testing.assert_array_equal(cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_UNCHANGED), img)
+    row_bytes = img.shape[1] * (img.shape[2] if img.ndim == 3 else 1) * img.itemsize
+    assert _row_filters(png, row_bytes) == {png_filter}
