@@ -84,9 +84,8 @@ def test_a_column_ahead_of_the_leader_keeps_the_standstill_gap_plus_the_time_gap
             assert np.allclose(a.velocity, world.ego_velocity, atol=1e-12)
 
 
-def test_a_spec_without_columns_keeps_its_worlds():
-    a = sample_world(_spec(lead_vehicle=1.0, vehicles_per_100m=0.0), 4, 0)
-    b = sample_world(_spec(lead_vehicle=1.0, vehicles_per_100m=0.0, column=0.0), 4, 0)
-    assert [x.cls for x in a.actors] == [x.cls for x in b.actors]
-    assert all(np.array_equal(p.pose, q.pose) for p, q in zip(a.actors, b.actors))
-    assert len(_in_ego_lane(a)) == 1
+@pytest.mark.parametrize("frame", [0, 1, 2])
+def test_without_a_column_the_leader_stands_alone_in_the_ego_lane(frame):
+    spec = _spec(lead_vehicle=1.0, vehicles_per_100m=0.0)
+    assert spec.traffic.column.values == (0.0,)
+    assert len(_in_ego_lane(sample_world(spec, 4, frame))) == 1
