@@ -220,7 +220,7 @@ class _Traffic:
         self.actors.append(Actor(len(self.actors) + 1, cls, build_actor_parts(recipe), pose,
                                  velocity=vel * heading, yaw_rate=yaw_rate, recipe=recipe))
 
-    def lead(self, share: float, headway_s: float, ego_speed: float, column: float = 0.0) -> None:
+    def lead(self, share: float, headway_s: float, ego_speed: float, column: float) -> None:
         """With probability `share`, a vehicle ahead of the ego in its lane, moving at the ego's
         speed, its rear the distance the ego covers in `headway_s` beyond the ego's free lane. In
         urban car following, time gaps are mostly 1-3 s (the two-second rule). With probability
