@@ -4,7 +4,8 @@ still writes for the camera image), and that both decode to the same pixels.
 
 Without `--data` it first generates `--frames` frames of `--spec` (no LiDAR) into a temporary folder.
 
-    .venv/bin/python benchmarks/bench_png.py [--data ROOT] [--frames 8] [--repeats 3] [--spec scenes/urban.yaml]
+    .venv/bin/python benchmarks/bench_png.py [--data ROOT] [--frames 8] [--repeats 3]
+        [--spec scenes/urban.yaml]
 """
 
 from __future__ import annotations
