@@ -1,6 +1,6 @@
 """The generator's PNG files: encoding time and size of each image kind, as written and with libpng's
-adaptive per-row filter choice at zlib level 3 (what the generator once wrote for every kind, and
-still writes for the camera image), and that both decode to the same pixels.
+adaptive per-row filter choice at zlib level 3 (what the generator once wrote for every kind), and
+that both decode to the same pixels.
 
 Without `--data` it first generates `--frames` frames of `--spec` (no LiDAR) into a temporary folder.
 

@@ -176,7 +176,8 @@ STATS: tuple[Stat, ...] = (
     Stat("images.flat_share", "share of flat pixels (|dI/dx| < 1)", "", med("images.flat_share")),
     Stat("images.edge_density", f"edge density (Canny {CANNY[0]}/{CANNY[1]})", "",
          med("images.edge_density")),
-    Stat("images.png_bytes", "PNG file size", "bytes", med("images.png_bytes")),
+    Stat("images.png_bytes", "PNG size of its pixels (one fixed encoder)", "bytes",
+         med("images.png_bytes")),
     Stat("images.road_colour_noise", f"bottom fifth's colour noise: robust SD of R - G after a "
          f"{HIGH_PASS_PX:g}-px high-pass", "grey levels", med("images.road_colour_noise")),
     Stat("images.road_detail", f"bottom fifth's detail: robust SD of the grey after a "

@@ -50,7 +50,7 @@ def run_chunk(job: ChunkJob) -> Acc:
         acc = Acc()
         for fid in job.ids:
             try:
-                img, nbytes = read_image(ds.image_path(fid))
+                img = read_image(ds.image_path(fid))
                 calib = ds.calib(fid) if job.lidar or job.labels else None
                 scan = ds.velodyne(fid) if job.lidar else None
                 labels = ds.labels(fid) if job.labels else None
@@ -62,7 +62,7 @@ def run_chunk(job: ChunkJob) -> Acc:
                 acc.skipped.append((fid, str(e)))
                 continue
             acc.frames.append(fid)
-            grey = image_stats(acc, img, nbytes)
+            grey = image_stats(acc, img)
             if scan is not None:
                 road = lidar_stats(acc, scan, calib, labels)
                 if road is not None:

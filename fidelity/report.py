@@ -48,7 +48,9 @@ NOTES = f"""\
   a surface's colour grain at one brightness only the first. The road surface: the same two at
   the pixels (each once) that the scan's returns within {ROAD_SURFACE_M} m of the road plane
   project to with P2, by ground distance from camera 0 (rect x-z), in frames with at least
-  {MIN_ROAD_PIXELS} such pixels in the band.
+  {MIN_ROAD_PIXELS} such pixels in the band. PNG size: the decoded pixels encoded again, the
+  Paeth filter on every row, run-length coding, zlib level 3 (one encoder for both datasets,
+  whichever wrote their files).
 - Objects are every label but DontCare. Projection gap: the label's 3D box corners projected with
   P2 and clipped to the image, max |side difference| against its 2D box.
 - A near, whole Car: a Car label at least {NEAR_CAR_PX} px tall, truncation 0, occlusion 0; its

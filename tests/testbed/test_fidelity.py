@@ -109,7 +109,10 @@ def test_report_numbers_match_a_hand_computation_on_one_real_frame(real_root, tm
         "lidar.reflectance_mean": scan[:, 3].astype(np.float64).mean(),
         "lidar.near_ground_share_left": ground[near & (scan[:, 1] > 0)].mean(),
         "lidar.near_ground_share_right": ground[near & (scan[:, 1] < 0)].mean(),
-        "images.png_bytes": (t / "image_2/000000.png").stat().st_size,
+        # the pixels as libpng stores them with the Paeth filter, run-length coding, zlib level 3
+        "images.png_bytes": len(cv2.imencode(".png", rgb[..., ::-1].astype(np.uint8), [
+            cv2.IMWRITE_PNG_COMPRESSION, 3, cv2.IMWRITE_PNG_FILTER, cv2.IMWRITE_PNG_FILTER_PAETH,
+            cv2.IMWRITE_PNG_STRATEGY, cv2.IMWRITE_PNG_STRATEGY_RLE])[1]),
         "images.mean_abs_dx": dx.mean(),
         "images.grey_sd": grey.std(),
         "images.flat_share": np.mean(dx < 1),
@@ -211,6 +214,24 @@ def test_a_dataset_without_velodyne_or_labels_reports_the_groups_absent(sim_root
     report = (tmp_path / "out/report.md").read_text()
     assert "LiDAR: absent in sim (no velodyne/)" in report
     assert "Labels: absent in sim (no label_2/)" in report
+
+
+def test_the_png_size_reads_the_pixels_not_the_file(sim_root, tmp_path):
+    """The same pixels written by another encoder (libpng's filter search, zlib level 9): other
+    file sizes, the same statistic."""
+    root = tmp_path / "ds"
+    shutil.copytree(sim_root, root)
+    sizes = []
+    for path in sorted((root / "training/image_2").glob("*.png")):
+        before = path.stat().st_size
+        img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+        cv2.imwrite(str(path), img, [cv2.IMWRITE_PNG_COMPRESSION, 9])
+        assert np.array_equal(cv2.imread(str(path), cv2.IMREAD_UNCHANGED), img)
+        sizes.append((before, path.stat().st_size))
+    assert all(abs(a - b) > 0.02 * a for a, b in sizes)
+    key = "images.png_bytes"
+    rewritten, written = compute_stats(root).get(key), compute_stats(sim_root).get(key)
+    assert len(written) == 2 and np.array_equal(rewritten, written)
 
 
 def test_an_unknown_statistic_in_the_tolerance_file_names_the_file_and_the_key(tmp_path):
