@@ -1,8 +1,8 @@
 """Image statistics of one image_2 PNG: tone, colour, texture and how much a PNG encoder has to
-store of its pixels. Generated images tend to be too clean (flat shading, no sensor noise), which shows as many
-flat pixels, weak gradients and small PNG files. With labels, the same inside the 2D boxes of
-near, whole Cars: what a detector sees of a car, which whole-image figures can match while the
-cars still look nothing like real ones."""
+store of its pixels. Generated images tend to be too clean (flat shading, no sensor noise), which
+shows as many flat pixels, weak gradients and small PNGs. With labels, the same inside the 2D
+boxes of near, whole Cars: what a detector sees of a car, which whole-image figures can match while
+the cars still look nothing like real ones."""
 
 from __future__ import annotations
 

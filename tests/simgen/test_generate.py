@@ -116,7 +116,8 @@ def test_png_files_hold_the_exact_pixels_with_one_row_filter(kind):
         "camera": (rng.integers(0, 256, (37, 53, 3), dtype=np.uint8), PNG_CAMERA, 4),  # Paeth
         "depth": (np.where(rng.random((37, 53)) < 0.2, 0, rng.integers(1, 65536, (37, 53))).astype(np.uint16),
                   PNG_DEPTH, 2),  # Up
-        "instance": (np.repeat(rng.integers(0, 65536, (37, 1)), 53, axis=1).astype(np.uint16), PNG_INSTANCE, 2),
+        "instance": (np.repeat(rng.integers(0, 65536, (37, 1)), 53, axis=1).astype(np.uint16),
+                     PNG_INSTANCE, 2),
     }[kind]
     png = encode_png(img, setting)
     np.testing.assert_array_equal(cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_UNCHANGED), img)
