@@ -30,6 +30,7 @@ import sys
 import tempfile
 from pathlib import Path
 
+import kitti  # noqa: F401  (first: it pins the kernels and OpenBLAS's threads before numpy loads)
 import cv2
 import numpy as np
 
