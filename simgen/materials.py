@@ -168,7 +168,7 @@ CURTAIN_REFLECTIVITY = 0.55
 # glazing is about a quarter of the cabin's enclosing surface and passes about 0.75 of the
 # light (UN ECE R43 asks at least 0.70 of the panes a driver looks through): 0.25 x 0.75 x 0.75,
 # about 0.14 of the colour the trim would have under the open sky. Lit as an outside surface,
-# sun included, a generated rear window read as a bright band where a photographed one is dark.
+# sun included, a rear window would read as a bright band where a photographed one is dark.
 CABIN_LIGHT = 0.14
 GLASS = Material("glass", tuple(CABIN_LIGHT * c for c in (0.04, 0.05, 0.07)),
                  nir_reflectivity((0.1, 0.1, 0.1)), incidence_exponent=0.0, transmittance=0.6)
