@@ -72,6 +72,31 @@ def object_returns(xz: np.ndarray, u: np.ndarray, rng: np.ndarray, width: float,
     return best, best_score
 
 
+def grown_beyond(obj_xz: np.ndarray, beyond_xz: np.ndarray, diag: float,
+                 strip: float) -> np.ndarray:
+    """Which returns beyond the image's border (mask over beyond_xz) belong to the object whose
+    returns in view are obj_xz: the clusters of them that keep it car-sized, nearest first, as
+    `object_returns` grows a seed. A cluster holding the car's hidden end and what touches it
+    (a hedge, the next car) would not, and stays out."""
+    joined = np.zeros(len(beyond_xz), dtype=np.bool_)
+    # only what lies within reach of a car-sized set can join it (a frustum opened to the border
+    # holds the whole street beyond it)
+    reach = diag + MERGE_SLACK
+    lo, hi = obj_xz.min(axis=0) - reach, obj_xz.max(axis=0) + reach
+    near = np.flatnonzero(((beyond_xz >= lo) & (beyond_xz <= hi)).all(axis=1))
+    if len(near) == 0:
+        return joined
+    cells_b, inverse_b = _cells(beyond_xz[near])
+    cells_o, _ = _cells(obj_xz)
+    cells = np.concatenate((cells_o, cells_b))
+    label = np.concatenate((np.zeros(len(cells_o), dtype=np.int64),
+                            1 + _link_components(cells_b, CLUSTER_R)))
+    lo, hi = _bounds(cells, label, label.max() + 1)
+    take = _merge(cells, label, 0, diag, strip, lo, hi)
+    joined[near] = take[len(cells_o):][inverse_b]
+    return joined
+
+
 @numba.njit(cache=True, nogil=True)
 def _cells(xz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The occupied CELL-sized bird's-eye cells (centres, in the order of their key), and each

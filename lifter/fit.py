@@ -6,15 +6,18 @@ under CLAIM_MIN_SCORE after the others):
 0. the road: the plane the scan shows under the box's bottom edge (`lifter.road`: real roads
    slope and curve, one plane per frame is 0.3 m off at 40 m on KITTI);
 1. frustum returns above that road (ROAD_CUT .. MAX_HEIGHT), minus those already claimed by a
-   nearer box's fit (an occluder with its own 2D box);
+   nearer box's fit (an occluder with its own 2D box); a side the image border cuts is opened,
+   since the scan sees past the border (`opened_at_border`);
 2. bird's-eye Euclidean clusters (a vertical surface stays connected however few beams hit it),
    each grown by the neighbouring clusters that keep it car-sized (a far car's bumper and roof
-   fall apart); the set that best covers the box's columns at the depth the road predicts wins;
+   fall apart); the set that best covers the box's columns at the depth the road predicts wins,
+   then takes the returns past a cut side that keep it car-sized (`clusters.grown_beyond`);
 3. yaw by L-shape search (closeness criterion) over 0..90 degrees on the returns below the belt
    line (the body's outline; the glasshouse is set in); of the four yaws it allows, the one
    nearest the network's; too few or collinear-in-one-point returns keep the network's yaw. The
    other axis and the network's own yaw are tried too, weighed by the network's orientation
-   prior, how much worse a rectangle fits the returns, the 2D box's sides and the length prior;
+   prior, how much worse a rectangle fits the returns, the 2D box's sides and the length prior
+   (for a box the border cuts, also the returns its box leaves out: SIGMA_EXTENT);
    (3b) where the winner's box still misses the 2D box's sides by more than their noise, the yaws
    within SIGMA_YAW_PRIOR of it are weighed the same way (a real car's rounded corners and curved
    faces can leave the closeness criterion's L-shape 10-20 degrees off, where both the 2D box
@@ -57,9 +60,11 @@ import numpy as np
 from kitti.boxes import wrap_angle
 from kitti.calib import Calibration
 
-from .clusters import MIN_POINTS, object_returns
+from .clusters import MERGE_SLACK, MIN_POINTS, grown_beyond, object_returns
 from .mono import box_up_of, contact_of, solve_from_alpha, wrap_one
 from .placement import (
+    BORDER_LEFT,
+    BORDER_RIGHT,
     CAMERA_UP,
     FOCAL_PX,
     MAX_GROW_L,
@@ -96,6 +101,8 @@ COST_SCALE = 8.0       # the winning yaw's cost (squared normalised misfits: yaw
                        # share placed within IoU 0.7 falls from 0.97 (cost < 0.5) to 0.79 (> 8)
 SIGMA_RECT = 0.005      # m, a yaw whose rectangle fits the returns this much worse (RMS) than the
                        # L-shape's costs one sigma: the HDL-64E's range noise (< 2 cm, Velodyne)
+SIGMA_EXTENT = MERGE_SLACK  # m, returns left out of the box along an axis: the slack a merged set
+                           # of them may have beyond the size prior (`clusters.MERGE_SLACK`)
 SMALL_CLASSES = ("Pedestrian", "Cyclist", "Person_sitting")
 REFINE_STEP = np.deg2rad(5.0)  # step 3b's yaws, one SIGMA_YAW_PRIOR each side of the winner's,
                                # lie this far apart; then a half and a quarter step around the best
@@ -248,8 +255,9 @@ def _size_and_place(xz: np.ndarray, u: np.ndarray, height: np.ndarray, h: float,
     sides and road fixing the centre (a `car`'s faces above its bumpers set in), and an unmeasured
     length chosen with the 2D box (its sides' scale `side_sigma` px, `side_dof`): the bottom
     centre, the size, the pinned count, the box's misfit to the 2D box's sides (`side_cost`) and
-    its length's cost. One kernel: tried for every yaw
-    hypothesis, its dozen small steps cost more in numpy's call overhead than in arithmetic."""
+    its length's cost (for a box the border cuts, with the returns it leaves out: SIGMA_EXTENT).
+    One kernel: tried for every yaw hypothesis, its dozen small steps cost more in numpy's call
+    overhead than in arithmetic."""
     c, s = np.cos(ry), np.sin(ry)
     pa = xz[:, 0] * c + xz[:, 1] * -s
     pb = xz[:, 0] * s + xz[:, 1] * c
@@ -269,7 +277,14 @@ def _size_and_place(xz: np.ndarray, u: np.ndarray, height: np.ndarray, h: float,
                          width, plane, up, MIRROR_FOOT * h, measure, side_sigma, side_dof)
             if alt[1][1] != best[1][1] and alt[3] + alt[4] < best[3] + best[4]:
                 best = alt
-    return best
+    if small or BORDER_LEFT < bbox[0] and bbox[2] < width - BORDER_RIGHT:
+        return best
+    # a box the image border cuts: its cut side fixes nothing and the network read a part of the
+    # object, so the returns left out of the box along an axis weigh the yaw (at a wrong one a near
+    # car's long side, which the scan sees past the border, lies across the box)
+    out_l = max(0.0, ext_a - best[1][2])
+    out_w = max(0.0, ext_b - best[1][1])
+    return best[0], best[1], best[2], best[3], best[4] + (out_l ** 2 + out_w ** 2) / SIGMA_EXTENT ** 2
 
 
 @numba.njit(cache=True, nogil=True)
@@ -313,8 +328,9 @@ def lift_fit(boxes: list[Box2D], priors: list[Prior], pts: FramePoints, calib: C
     confident = np.array([b.score >= CLAIM_MIN_SCORE for b in boxes])
     out: list[Lifted | None] = [None] * len(boxes)
     for i in np.lexsort((road_d, ~confident)):
-        cand, hl = _frustum_returns(pts.rect, pts.uv, pool, pool_u, free, boxes[i].bbox,
-                                    planes[i])
+        cand, hl = _frustum_returns(pts.rect, pts.uv, pool, pool_u, free,
+                                    opened_at_border(boxes[i].bbox, image_size[0]), planes[i],
+                                    float(image_size[0]))
         frame_d = ray_depth(*rays[i], road.plane)
         out[i], claimed = _fit_box(boxes[i], priors[i], cand, hl, pts, view, planes[i], road_d[i],
                                    frame_d)
@@ -323,25 +339,41 @@ def lift_fit(boxes: list[Box2D], priors: list[Prior], pts: FramePoints, calib: C
     return out  # type: ignore[return-value]
 
 
+def opened_at_border(bbox: np.ndarray, width: int) -> np.ndarray:
+    """bbox [x1, y1, x2, y2] with each side the image border cuts moved out to infinity. The
+    scan sees past the image's edge (`points.frame_points` keeps a 100-degree wedge), so a car
+    the border cuts keeps the returns of the part the image does not show: its length and both
+    its faces, which the yaw search and the placement need."""
+    out = np.asarray(bbox, dtype=np.float64).copy()
+    if out[0] <= BORDER_LEFT:
+        out[0] = -np.inf
+    if out[2] >= width - BORDER_RIGHT:
+        out[2] = np.inf
+    return out
+
+
 @numba.njit(cache=True, nogil=True)
 def _frustum_returns(rect: np.ndarray, uv: np.ndarray, pool: np.ndarray, pool_u: np.ndarray,
-                     free: np.ndarray, bbox: np.ndarray,
-                     plane: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                     free: np.ndarray, bbox: np.ndarray, plane: np.ndarray,
+                     width: float) -> tuple[np.ndarray, np.ndarray]:
     """Steps 0-1 for one box: the returns of `pool` (image columns pool_u) not yet claimed whose
     pixel lies in bbox [x1, y1, x2, y2] and that lie ROAD_CUT..MAX_HEIGHT above `plane`, and their
-    heights. One pass over the pool: numpy's masks and gathers over it, per box, were a tenth of
-    `fit`'s time."""
+    heights. Beyond the image's columns (0..width: where `opened_at_border` opened a side) the
+    rows are no test: the box's rows are those of the part in view. One pass over the pool:
+    numpy's masks and gathers over it, per box, were a tenth of `fit`'s time."""
     idx, hl = np.empty(len(pool), dtype=np.int64), np.empty(len(pool))
     n = 0
     for j in range(len(pool)):
-        if not bbox[0] <= pool_u[j] <= bbox[2]:
+        u = pool_u[j]
+        if not bbox[0] <= u <= bbox[2]:
             continue
         i = pool[j]
-        if bbox[1] <= uv[i, 1] <= bbox[3] and free[i]:
-            h = rect[i, 0] * plane[0] + rect[i, 1] * plane[1] + rect[i, 2] * plane[2] + plane[3]
-            if ROAD_CUT < h < MAX_HEIGHT:
-                idx[n], hl[n] = i, h
-                n += 1
+        if not free[i] or (0.0 <= u <= width and not bbox[1] <= uv[i, 1] <= bbox[3]):
+            continue
+        h = rect[i, 0] * plane[0] + rect[i, 1] * plane[1] + rect[i, 2] * plane[2] + plane[3]
+        if ROAD_CUT < h < MAX_HEIGHT:
+            idx[n], hl[n] = i, h
+            n += 1
     return idx[:n].copy(), hl[:n].copy()
 
 
@@ -360,10 +392,10 @@ def _bev(rect: np.ndarray, uv: np.ndarray, idx: np.ndarray,
 
 def visible_share(T: np.ndarray, dims: np.ndarray, ry: float, P: np.ndarray, width: int) -> float:
     """The share of the box's bearings (seen from the camera, bird's-eye) that the image covers.
-    The frustum holds only the returns of that share, so a box mostly beyond the image border is
-    fitted to a piece of its object: on held-out generated frames (64 beams, oracle boxes) the
-    Cars placed within IoU 0.7 fall from 0.83 of those inside the image to 0.62, 0.25 and 0 of
-    those truncated 0.3-0.5, 0.5-0.7 and over 0.9."""
+    A box mostly beyond the image border is fitted to a piece of its object: on held-out
+    generated frames (64 beams, oracle boxes) the Cars placed within IoU 0.7 fall from 0.67 of
+    those inside the image to 0.43, 0.50 and 0.19 of those truncated 0.3-0.5, 0.5-0.7 and over
+    0.7 (`benchmarks/lifter_by_truncation.py`, results/lifter.md)."""
     c, s = np.cos(ry), np.sin(ry)
     heading, lateral = np.array([c, -s]), np.array([s, c])
     half_l, half_w = dims[2] / 2, dims[1] / 2
@@ -390,11 +422,22 @@ def _fit_box(box: Box2D, prior: Prior, cand: np.ndarray, height: np.ndarray, pts
     sigma = float(np.hypot(_depth_sigma(road_d), road_d - frame_d))
     if box.bbox[3] >= view.image_size[1] - 2.0:  # bottom cut by the border: the road depth only bounds
         sigma = max(sigma, road_d)
-    best, best_score = object_returns(xz, u, rng, max(box.bbox[2] - box.bbox[0], 1.0), road_d,
-                                      sigma, float(np.hypot(prior.dims[2], prior.dims[1])),
-                                      float(min(prior.dims[1], prior.dims[2])))
+    diag = float(np.hypot(prior.dims[2], prior.dims[1]))
+    strip = float(min(prior.dims[1], prior.dims[2]))
+    # the object is found among the returns in the box; those beyond a cut side (`opened_at_border`)
+    # then add the part of it the image does not show
+    in_view = (u >= box.bbox[0]) & (u <= box.bbox[2])
+    if in_view.sum() < MIN_POINTS:
+        return _fallback(box, prior, view, plane), None
+    best, best_score = object_returns(xz[in_view], u[in_view], rng[in_view],
+                                      max(box.bbox[2] - box.bbox[0], 1.0), road_d, sigma, diag,
+                                      strip)
     if best_score < 0.02:
         return _fallback(box, prior, view, plane), None
+    best = np.flatnonzero(in_view)[best]
+    if not in_view.all():
+        beyond = np.flatnonzero(~in_view)
+        best = np.concatenate((best, beyond[grown_beyond(xz[best], xz[beyond], diag, strip)]))
     obj = _Returns(xz[best], u[best], height[best])
     c = obj.centroid
     ry_prior = float(wrap_angle(prior.alpha + np.arctan2(c[0], c[1])))

@@ -6,8 +6,9 @@ import pytest
 
 from kitti.boxes import box_corners, project_boxes, wrap_angle
 from kitti.calib import Calibration
-from kitti.iou import iou_2d
-from lifter.fit import lift_fit, visible_share
+from kitti.iou import iou_2d, iou_3d
+from lifter.clusters import grown_beyond
+from lifter.fit import lift_fit, opened_at_border, visible_share
 from lifter.ground import fit_ground_plane
 from lifter.mono import box_up_of, solve_from_alpha
 from lifter.placement import OUTLINE_FRONT, OUTLINE_REAR
@@ -208,3 +209,43 @@ def test_a_front_views_width_is_the_one_the_2d_box_outlines(labelled_w):
                                   np.inf)
     assert dims[1] == pytest.approx(labelled_w, abs=1e-9)
     assert T[0] == pytest.approx(body[0], abs=1e-3)  # the 2D sides' rows and the centroid's pull
+
+
+@pytest.mark.parametrize("side", [-1.0, 1.0])
+def test_a_car_beside_the_camera_cut_by_the_border_is_fitted_from_the_returns_past_it(side):
+    """A car parked beside the camera (KITTI's parked rows): the image shows its rear third, the
+    scan its whole near side past the border. With a size/orientation prior 90 degrees off (what
+    the network reads in such a cut crop) the box still lies along the car: its side, which the
+    returns past the border show, cannot lie across a box a car's width wide."""
+    box = np.array([side * 3.3, 1.65, 4.0, 1.59, 1.65, 4.04, -np.pi / 2])
+    fr = make_frame(box)
+    o = fr.objects[0]
+    assert o.bbox[0] <= 1.0 if side < 0 else o.bbox[2] >= IMAGE_SIZE[0] - 2.0  # cut by the border
+    pts = frame_points(fr.velodyne, fr.calib, PLANE)
+    past = (pts.uv[:, 0] < 0) | (pts.uv[:, 0] > IMAGE_SIZE[0])
+    assert past.sum() > 100  # the scan sees the car past the border
+    prior = Prior(np.array([o.h, o.w, o.l]), float(wrap_angle(o.alpha + np.pi / 2)))
+    out = lift_fit([Box2D("Car", o.bbox, 1.0)], [prior], pts, fr.calib, IMAGE_SIZE, PLANE)[0]
+    yaw_err = abs(float(wrap_angle(2 * (out.rotation_y - box[6])))) / 2  # the axis, either way round
+    assert np.rad2deg(yaw_err) < 3.0, out
+    fitted = np.array([*out.location, *out.dims, out.rotation_y])
+    assert iou_3d(box[None], fitted[None])[0, 0] > 0.8, out
+
+
+def test_only_a_border_cut_side_is_opened():
+    box = np.array([10.0, 100.0, 300.0, 200.0])
+    assert np.array_equal(opened_at_border(box, 1242), box)
+    assert np.array_equal(opened_at_border(np.array([0.0, 100.0, 1240.0, 374.0]), 1242),
+                          [-np.inf, 100.0, np.inf, 374.0])
+    assert np.array_equal(opened_at_border(np.array([1.5, 100.0, 1239.5, 374.0]), 1242),
+                          [1.5, 100.0, 1239.5, 374.0])
+
+
+def test_returns_past_the_border_join_only_while_the_object_stays_car_sized():
+    """Past the border lie the car's hidden end (its own cluster, 0.2 m on) and, 3 m farther, a
+    wall: the end joins, the wall would make the set longer than a car and stays out."""
+    seen = np.stack([np.full(20, 2.0), np.linspace(3.0, 5.0, 20)], axis=1)  # a side face, x = 2
+    hidden = np.stack([np.full(10, 2.0), np.linspace(1.8, 2.8, 10)], axis=1)
+    wall = np.stack([np.full(10, 2.0), np.linspace(-2.0, -1.2, 10)], axis=1)
+    joined = grown_beyond(seen, np.concatenate((hidden, wall)), diag=np.hypot(4.0, 1.7), strip=1.7)
+    assert joined.tolist() == [True] * 10 + [False] * 10

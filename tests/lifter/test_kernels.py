@@ -59,14 +59,17 @@ def test_frustum_returns_are_the_masked_pool():
     pool = np.sort(rng.choice(len(rect), 2000, replace=False))
     free = rng.uniform(size=len(rect)) > 0.2
     plane = _plane(rng)
-    for bbox in ([300.0, 100.0, 700.0, 300.0], [0.0, 0.0, 1241.0, 374.0], [10.0, 10.0, 11.0, 11.0]):
+    width = 1242.0
+    for bbox in ([300.0, 100.0, 700.0, 300.0], [0.0, 0.0, 1241.0, 374.0], [10.0, 10.0, 11.0, 11.0],
+                 [-np.inf, 150.0, 200.0, 300.0]):  # the last opened at the left border
         bbox = np.array(bbox)
         u, v = uv[pool, 0], uv[pool, 1]
-        cand = pool[(u >= bbox[0]) & (u <= bbox[2]) & (v >= bbox[1]) & (v <= bbox[3])]
+        rows = ((v >= bbox[1]) & (v <= bbox[3])) | (u < 0) | (u > width)  # no row test past the border
+        cand = pool[(u >= bbox[0]) & (u <= bbox[2]) & rows]
         cand = cand[free[cand]]
         hl = rect[cand] @ plane[:3] + plane[3]
         keep = (hl > fit.ROAD_CUT) & (hl < fit.MAX_HEIGHT)
-        idx, h = fit._frustum_returns(rect, uv, pool, uv[pool, 0], free, bbox, plane)
+        idx, h = fit._frustum_returns(rect, uv, pool, uv[pool, 0], free, bbox, plane, width)
         np.testing.assert_array_equal(idx, cand[keep])
         np.testing.assert_allclose(h, hl[keep], **TIGHT)
 
