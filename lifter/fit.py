@@ -63,13 +63,12 @@ from kitti.calib import Calibration
 from .clusters import MERGE_SLACK, MIN_POINTS, grown_beyond, object_returns
 from .mono import box_up_of, contact_of, solve_from_alpha, wrap_one
 from .placement import (
-    BORDER_LEFT,
-    BORDER_RIGHT,
     CAMERA_UP,
     FOCAL_PX,
     MAX_GROW_L,
     MAX_GROW_W,
     SIGMA_LENGTH,
+    cut_sides,
     height_from_box,
     length_from_sides,
     percentile,
@@ -277,7 +276,8 @@ def _size_and_place(xz: np.ndarray, u: np.ndarray, height: np.ndarray, h: float,
                          width, plane, up, MIRROR_FOOT * h, measure, side_sigma, side_dof)
             if alt[1][1] != best[1][1] and alt[3] + alt[4] < best[3] + best[4]:
                 best = alt
-    if small or BORDER_LEFT < bbox[0] and bbox[2] < width - BORDER_RIGHT:
+    cut_left, cut_right = cut_sides(bbox, width)
+    if small or not (cut_left or cut_right):
         return best
     # a box the image border cuts: its cut side fixes nothing and the network read a part of the
     # object, so the returns left out of the box along an axis weigh the yaw (at a wrong one a near
@@ -345,9 +345,10 @@ def opened_at_border(bbox: np.ndarray, width: int) -> np.ndarray:
     the border cuts keeps the returns of the part the image does not show: its length and both
     its faces, which the yaw search and the placement need."""
     out = np.asarray(bbox, dtype=np.float64).copy()
-    if out[0] <= BORDER_LEFT:
+    cut_left, cut_right = cut_sides(out, width)
+    if cut_left:
         out[0] = -np.inf
-    if out[2] >= width - BORDER_RIGHT:
+    if cut_right:
         out[2] = np.inf
     return out
 

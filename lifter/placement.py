@@ -56,6 +56,13 @@ CAMERA_UP = np.array([0.0, -1.0, 0.0])
 
 
 @numba.njit(cache=True, nogil=True)
+def cut_sides(bbox: np.ndarray, width: int) -> tuple[bool, bool]:
+    """Whether the image border cuts the 2D box's left and its right side (BORDER_LEFT,
+    BORDER_RIGHT): such a side is the border's column, no constraint on the object."""
+    return bbox[0] <= BORDER_LEFT, bbox[2] >= width - BORDER_RIGHT
+
+
+@numba.njit(cache=True, nogil=True)
 def percentile(v: np.ndarray, q: float) -> float:
     """The q-th percentile by nearest rank: np.percentile's interpolation costs ten times more."""
     k = round(q / 100.0 * (len(v) - 1))
@@ -97,9 +104,10 @@ def side_cost(boxes7: np.ndarray, P: np.ndarray, bbox: np.ndarray, width: int, u
         b = boxes7[i]
         u = corner_columns(b[0], b[1], b[2], b[3], b[4], b[5], b[6], P, up)
         total = 0.0
-        if bbox[0] > BORDER_LEFT:
+        cut_left, cut_right = cut_sides(bbox, width)
+        if not cut_left:
             total += _side_term(u.min() - bbox[0], sigma, dof, gaussian)
-        if bbox[2] < width - BORDER_RIGHT:
+        if not cut_right:
             total += _side_term(u.max() - bbox[2], sigma, dof, gaussian)
         err[i] = total / sigma ** 2 if gaussian else total
     return err
@@ -144,7 +152,7 @@ def _faces(pxz: np.ndarray, pu: np.ndarray, ph: np.ndarray, e: np.ndarray, e_oth
     near_lo = sensor_xz[0] * e[0] + sensor_xz[1] * e[1] < 0.5 * (lo + hi)
     x1, x2 = bbox[0], bbox[2]
     tol = max(FACE_TOL_PX, FACE_TOL_FRAC * (x2 - x1))
-    cut1, cut2 = x1 <= BORDER_LEFT, x2 >= width - BORDER_RIGHT
+    cut1, cut2 = cut_sides(bbox, width)
     ok_near = ok_far = False
     near_low = np.inf  # the lowest return at the near face
     for which in range(2):
@@ -293,8 +301,9 @@ def translation(pxz: np.ndarray, pu: np.ndarray, ph: np.ndarray, h: float, w: fl
         r0, r1 = x / norm, z / norm
         u = corner_columns(x, y, z, h, w, l, ry, P, up)
         m = 4
+        cut = cut_sides(bbox, width)
         for side in range(2):
-            if (bbox[0] <= BORDER_LEFT) if side == 0 else (bbox[2] >= width - BORDER_RIGHT):
+            if cut[side]:
                 continue
             us = bbox[0] if side == 0 else bbox[2]
             pick = np.argmin(u) if side == 0 else np.argmax(u)
