@@ -2,7 +2,6 @@
 KITTI result files with the 3D fields as the format's placeholders."""
 from __future__ import annotations
 
-from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -14,6 +13,7 @@ from detector.boxes import Letterbox
 from detector.data import CLASSES
 from detector.model import STRIDES, FlexiNet, ModelConfig
 from detector.nms import postprocess
+from kitti.cpu import aten_convolutions
 from kitti.dataset import KittiDataset
 from kitti.io import atomic_path
 from kitti.labels import Object3D, write_label
@@ -81,23 +81,6 @@ def save_ensemble(path: Path, weights: list[Path]) -> None:
     checkpoint_members({"members": members}, Path(path))
     with atomic_path(Path(path)) as tmp:
         torch.save({"members": members, "ensemble_of": [Path(w).name for w in weights]}, tmp)
-
-
-@contextmanager
-def aten_convolutions():
-    """Convolutions by ATen on MKL rather than oneDNN or NNPACK. oneDNN picks its algorithm by
-    the thread count (one and two threads give other bits) and its blocking by the CPU; NNPACK,
-    which ATen takes for a batch of 16 or more, blocks its sums by the CPU's cache sizes (an
-    AVX-512 EPYC and an AVX2 one differ in the last bits); MKL's COMPATIBLE branch (pinned by
-    kitti.cpu) gives the same bits on Intel and AMD and with 1 or 2 threads
-    (tests/test_same_bytes.py), at the same speed for this network."""
-    before = torch.backends.mkldnn.enabled
-    torch.backends.mkldnn.enabled = False
-    try:
-        with torch.backends.nnpack.flags(enabled=False):
-            yield
-    finally:
-        torch.backends.mkldnn.enabled = before
 
 
 @dataclass

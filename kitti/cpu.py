@@ -10,7 +10,7 @@ across an IoU threshold. Each library reads its choice from the environment when
 first, and every other package of the project imports `kitti` first. Embree takes its cap in
 its device config instead (simgen.embree.EMBREE_CONFIG). PyTorch's oneDNN and NNPACK convolutions
 size their blocks by the CPU's caches, which no setting caps: the networks run ATen's own
-convolutions on MKL instead (`aten_convolutions` in detector.infer and lifter.predictor).
+convolutions on MKL instead (`aten_convolutions`, around every detector and lifter read).
 
 The pins override the user's own settings of these variables (a stale one would silently break
 the promise); `TESTBED_NATIVE_KERNELS=1` leaves every library to choose for itself (faster on
@@ -24,6 +24,7 @@ import os
 import platform
 import sys
 import warnings
+from contextlib import contextmanager
 
 NATIVE = "TESTBED_NATIVE_KERNELS"
 
@@ -95,3 +96,23 @@ def pin() -> dict[str, str]:
 def _avx512_enabled(numpy) -> bool:
     features = getattr(getattr(numpy, "_core", None), "_multiarray_umath", None)
     return bool(getattr(features, "__cpu_features__", {}).get("X86_V4"))
+
+
+@contextmanager
+def aten_convolutions():
+    """PyTorch's convolutions by ATen on MKL's COMPATIBLE branch (pinned above) rather than oneDNN
+    or NNPACK. oneDNN picks its algorithm by the thread count (one and two threads give other
+    bits) and its blocking by the CPU; NNPACK, which ATen takes for a batch of 16 or more (a
+    detector batch of 8 images with their mirrors, a lifter frame's 8 crops with theirs), blocks
+    its sums by the CPU's cache sizes (an AVX-512 EPYC and an AVX2 one differ in the last bits).
+    The same bits on Intel and AMD and with 1 or 2 threads (tests/test_same_bytes.py), at the
+    same speed for the project's networks. torch is imported here, not with kitti."""
+    import torch
+
+    before = torch.backends.mkldnn.enabled
+    torch.backends.mkldnn.enabled = False
+    try:
+        with torch.backends.nnpack.flags(enabled=False):
+            yield
+    finally:
+        torch.backends.mkldnn.enabled = before

@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import hashlib
-from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
 import torch
+
+from kitti.cpu import aten_convolutions
 
 from .crops import crop, to_tensor_layout
 from .multibin import decode
@@ -42,22 +43,6 @@ def forward_mirrored(net: SizeOrientationNet, x: torch.Tensor, cls: torch.Tensor
     n = len(cls)
     cs_m = cs[n:] * torch.tensor([1.0, -1.0])
     return (dims[:n] + dims[n:]) / 2, (conf[:n] + conf[n:]) / 2, (cs[:n] + cs_m) / 2
-
-
-@contextmanager
-def aten_convolutions():
-    """Convolutions by ATen on MKL's COMPATIBLE branch (pinned by kitti.cpu) rather than oneDNN,
-    whose algorithm follows the thread count and whose blocking follows the CPU, or NNPACK, which
-    ATen takes for a batch of 16 or more (a frame's 8 crops and their mirror images) and which
-    blocks its sums by the CPU's cache sizes: the same bits on every covered CPU
-    (detector.infer.aten_convolutions; the two packages share no module)."""
-    before = torch.backends.mkldnn.enabled
-    torch.backends.mkldnn.enabled = False
-    try:
-        with torch.backends.nnpack.flags(enabled=False):
-            yield
-    finally:
-        torch.backends.mkldnn.enabled = before
 
 
 class Predictor:

@@ -6,9 +6,9 @@ import sys
 import pytest
 import torch
 
-from detector.infer import aten_convolutions
 from detector.layers import ACTIVATIONS, Focus
 from detector.model import PRESETS, STRIDES, FlexiNet, ModelConfig, count_parameters
+from kitti.cpu import aten_convolutions
 
 
 @pytest.mark.parametrize("preset", sorted(PRESETS))
