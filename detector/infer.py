@@ -42,7 +42,8 @@ def default_scales(weights: str | Path | None) -> tuple[float, ...]:
     return DEFAULT_SCALES if path.resolve() == DEFAULT_WEIGHTS.resolve() else (1.0,)
 
 
-def save_checkpoint(path: Path, model: FlexiNet, input_size: tuple[int, int], extra: dict | None = None) -> None:
+def save_checkpoint(path: Path, model: FlexiNet, input_size: tuple[int, int],
+                    extra: dict | None = None) -> None:
     """A self-describing checkpoint: network config (anchors included), input size, class names, weights."""
     state = {"model_cfg": model.cfg.to_dict(), "input_size": list(input_size), "classes": list(CLASSES),
              "model": {k: v.detach().clone() for k, v in model.state_dict().items()}}
