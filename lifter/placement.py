@@ -100,11 +100,11 @@ def side_cost(boxes7: np.ndarray, P: np.ndarray, bbox: np.ndarray, width: int, u
     ones (a detector's tail: `types.Box2D.side_dof`)."""
     err = np.zeros(len(boxes7))
     gaussian = np.isinf(dof)
+    cut_left, cut_right = cut_sides(bbox, width)
     for i in range(len(boxes7)):
         b = boxes7[i]
         u = corner_columns(b[0], b[1], b[2], b[3], b[4], b[5], b[6], P, up)
         total = 0.0
-        cut_left, cut_right = cut_sides(bbox, width)
         if not cut_left:
             total += _side_term(u.min() - bbox[0], sigma, dof, gaussian)
         if not cut_right:
