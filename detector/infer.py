@@ -13,7 +13,7 @@ from detector.boxes import Letterbox
 from detector.data import CLASSES
 from detector.model import STRIDES, FlexiNet, ModelConfig
 from detector.nms import postprocess
-from kitti.cpu import aten_convolutions
+from kitti.cpu import portable_networks
 from kitti.dataset import KittiDataset
 from kitti.io import atomic_path
 from kitti.labels import Object3D, write_label
@@ -186,7 +186,7 @@ class Detector:
         xs = torch.cat([x, x.flip(-1)]) if self.mirror else x
         blocks = []
         for model in self.models:
-            with aten_convolutions():
+            with portable_networks():
                 raw = model.predict_raw(xs)
             blocks.append(raw[:n])
             if self.mirror:

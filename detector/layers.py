@@ -5,6 +5,7 @@ Every block takes its activation by name so that the thesis's activation study
 """
 from __future__ import annotations
 
+import numpy as np
 import torch
 from torch import nn
 
@@ -111,10 +112,13 @@ class SPP(nn.Module):
 
 
 def fuse_conv_bn(conv: nn.Conv2d, bn: nn.BatchNorm2d) -> nn.Conv2d:
-    """One conv equal to conv followed by (eval-mode) batch norm: faster inference, same output."""
+    """One conv equal to conv followed by (eval-mode) batch norm: faster inference, same output.
+    The scale is numpy's square root and division (correctly rounded on every CPU): ATen's
+    float32 sqrt is MKL's vector maths, whose last bits follow the CPU."""
     fused = nn.Conv2d(conv.in_channels, conv.out_channels, conv.kernel_size, conv.stride,
                       conv.padding, groups=conv.groups, bias=True)
-    scale = bn.weight / torch.sqrt(bn.running_var + bn.eps)
+    var, gamma = bn.running_var.detach().numpy(), bn.weight.detach().numpy()
+    scale = torch.from_numpy(gamma / np.sqrt(var + np.float32(bn.eps)))
     fused.weight.data.copy_(conv.weight.data * scale.reshape(-1, 1, 1, 1))
     b = conv.bias.data if conv.bias is not None else torch.zeros_like(bn.running_mean)
     fused.bias.data.copy_((b - bn.running_mean) * scale + bn.bias)

@@ -8,14 +8,18 @@ it does not, a few ulps apart, enough to move a LiDAR return across an edge and 
 across an IoU threshold. Each library reads its choice from the environment when it loads, so
 `pin()` writes the choices below before any of them is imported: `kitti/__init__.py` calls it
 first, and every other package of the project imports `kitti` first. Embree takes its cap in
-its device config instead (simgen.embree.EMBREE_CONFIG). PyTorch's oneDNN and NNPACK convolutions
-size their blocks by the CPU's caches, which no setting caps: the networks run ATen's own
-convolutions on MKL instead (`aten_convolutions`, around every detector and lifter read).
+its device config instead (simgen.embree.EMBREE_CONFIG), and the LiDAR recomputes Embree's
+ranges (simgen.lidar.kernels.exact_hits). PyTorch's convolutions (oneDNN, NNPACK, MKL) follow the
+CPU's caches or vendor, which no setting caps: the networks' reads run their matrix products on
+numpy's pinned OpenBLAS instead (`portable_networks`, around every detector and lifter read).
 
 The pins override the user's own settings of these variables (a stale one would silently break
 the promise); `TESTBED_NATIVE_KERNELS=1` leaves every library to choose for itself (faster on
 some CPUs, no longer the same bytes everywhere). A CPU without AVX2 and FMA is not covered: there
-the libraries run what the CPU has and the outputs may differ in their last bits.
+the libraries run what the CPU has and the outputs may differ in their last bits. One case stays
+open on covered CPUs: where a LiDAR ray meets two triangles at exactly the same distance (about
+one ray in 100,000 on a street, on the diagonal of a flat quad), Embree takes the first it
+reaches, and the order it reaches them in could follow its reciprocal's last bits.
 """
 
 from __future__ import annotations
@@ -25,6 +29,7 @@ import platform
 import sys
 import warnings
 from contextlib import contextmanager
+from functools import partial
 
 NATIVE = "TESTBED_NATIVE_KERNELS"
 
@@ -36,8 +41,8 @@ PINS = {
     # SkylakeX...); one type and one thread fix the order of every sum.
     "OPENBLAS_CORETYPE": "Haswell",
     "OPENBLAS_NUM_THREADS": "1",
-    # PyTorch: ATen's vectorised kernels, oneDNN's convolutions, MKL's matrix products. MKL's
-    # COMPATIBLE branch is the one its vendor promises to be the same on Intel and AMD.
+    # PyTorch: ATen's vectorised kernels, oneDNN's convolutions, MKL's matrix products (the
+    # networks' reads take theirs from OpenBLAS instead: portable_networks).
     "ATEN_CPU_CAPABILITY": "avx2",
     "ONEDNN_MAX_CPU_ISA": "AVX2",
     "MKL_CBWR": "COMPATIBLE",
@@ -99,20 +104,72 @@ def _avx512_enabled(numpy) -> bool:
 
 
 @contextmanager
-def aten_convolutions():
-    """PyTorch's convolutions by ATen on MKL's COMPATIBLE branch (pinned above) rather than oneDNN
-    or NNPACK. oneDNN picks its algorithm by the thread count (one and two threads give other
-    bits) and its blocking by the CPU; NNPACK, which ATen takes for a batch of 16 or more (a
-    detector batch of 8 images with their mirrors, a lifter frame's 8 crops with theirs), blocks
-    its sums by the CPU's cache sizes (an AVX-512 EPYC and an AVX2 one differ in the last bits).
-    The same bits on Intel and AMD and with 1 or 2 threads (tests/test_same_bytes.py), at the
-    same speed for the project's networks. torch is imported here, not with kitti."""
+def portable_networks():
+    """The networks' convolutions and linear layers as matrix products on numpy's OpenBLAS, whose
+    kernels and blocking are pinned above (OPENBLAS_CORETYPE, one thread), instead of PyTorch's.
+    PyTorch's own are not the same bits everywhere: oneDNN picks its algorithm by the thread
+    count and its blocking by the CPU; NNPACK blocks its sums by the CPU's cache sizes; and MKL,
+    which ATen's convolutions call, gives other bits on an Intel CPU than on an AMD one even on
+    its COMPATIBLE branch (the detector's boxes for one generated frame differed in the printed
+    digits under every branch MKL_CBWR names). Gradients and other dtypes keep PyTorch's
+    operators. torch is imported here, not with kitti."""
+    import torch
+    import torch.nn.functional as F
+
+    conv2d, linear = F.conv2d, F.linear
+    F.conv2d = partial(_blas_conv2d, conv2d)
+    F.linear = partial(_blas_linear, linear)
+    try:
+        yield
+    finally:
+        F.conv2d, F.linear = conv2d, linear
+
+
+def _plain(torch, *tensors) -> bool:
+    """Whether the operator's tensors are float32 on the CPU with no gradient to record."""
+    grad = torch.is_grad_enabled() and any(t.requires_grad for t in tensors if t is not None)
+    return not grad and all(t.dtype == torch.float32 and t.device.type == "cpu" for t in tensors if t is not None)
+
+
+def _pair(v) -> tuple[int, int]:
+    return (v, v) if isinstance(v, int) else tuple(v)
+
+
+def _blas_conv2d(torch_conv2d, x, weight, bias=None, stride=1, padding=0, dilation=1, groups=1):
+    """F.conv2d as im2col (ATen's unfold, a copy) and one stacked matrix product per image, the
+    groups stacked (numpy.matmul on OpenBLAS)."""
+    import numpy as np
+    import torch
+    import torch.nn.functional as F
+
+    if isinstance(padding, str) or x.dim() != 4 or not _plain(torch, x, weight, bias):
+        return torch_conv2d(x, weight, bias, stride, padding, dilation, groups)
+    (sh, sw), (ph, pw), (dh, dw) = _pair(stride), _pair(padding), _pair(dilation)
+    n, c, h, w = x.shape
+    o, _, kh, kw = weight.shape
+    ho, wo = (h + 2 * ph - dh * (kh - 1) - 1) // sh + 1, (w + 2 * pw - dw * (kw - 1) - 1) // sw + 1
+    if (kh, kw, sh, sw, ph, pw) == (1, 1, 1, 1, 0, 0):
+        cols = x.contiguous().reshape(n, c, h * w)
+    else:
+        cols = F.unfold(x, (kh, kw), (dh, dw), (ph, pw), (sh, sw))
+    k = c // groups * kh * kw
+    wt = weight.detach().contiguous().numpy().reshape(groups, o // groups, k)
+    xs = cols.detach().contiguous().numpy().reshape(n, groups, k, ho * wo)
+    out = np.empty((n, groups, o // groups, ho * wo), np.float32)
+    for i in range(n):
+        np.matmul(wt, xs[i], out=out[i])
+    if bias is not None:
+        out += bias.detach().numpy().reshape(groups, o // groups, 1)
+    return torch.from_numpy(out.reshape(n, o, ho, wo))
+
+
+def _blas_linear(torch_linear, x, weight, bias=None):
+    """F.linear as one matrix product (numpy.matmul on OpenBLAS)."""
     import torch
 
-    before = torch.backends.mkldnn.enabled
-    torch.backends.mkldnn.enabled = False
-    try:
-        with torch.backends.nnpack.flags(enabled=False):
-            yield
-    finally:
-        torch.backends.mkldnn.enabled = before
+    if not _plain(torch, x, weight, bias):
+        return torch_linear(x, weight, bias)
+    out = x.detach().contiguous().numpy() @ weight.detach().numpy().T
+    if bias is not None:
+        out += bias.detach().numpy()
+    return torch.from_numpy(out)

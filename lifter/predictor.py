@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from kitti.cpu import aten_convolutions
+from kitti.cpu import portable_networks
 
 from .crops import crop, to_tensor_layout
 from .multibin import decode
@@ -67,7 +67,7 @@ class Predictor:
             return []
         x = to_tensor_layout(np.stack([crop(image, b.bbox, self.size) for b in boxes]))
         cls = torch.tensor([CLASS_OF.get(b.type, 0) for b in boxes])
-        with aten_convolutions():
+        with portable_networks():
             dims, conf, cs = forward_mirrored(self.net, torch.from_numpy(x), cls, self.mirror)
         alpha = decode(conf.numpy(), cs.numpy())
         return [Prior(d.astype(float), float(a)) for d, a in zip(dims.numpy(), alpha)]

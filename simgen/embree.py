@@ -21,8 +21,10 @@ from embreex.rtcore_scene import EmbreeScene
 # widths round differently: the same triangles and rays give hits a few ulps apart, enough to move
 # a return across an edge or a threshold (3 urban scans hashed with devices capped at AVX2, AVX and
 # SSE4.2: three different outputs). Capped at AVX2 (x86-64 CPUs since 2013; one without it runs its
-# own best), every such machine runs the same kernels and writes the same bytes (kitti.cpu pins the
-# other libraries alike).
+# own best), every such machine runs the same kernels and finds the same triangles; the distances
+# still divide by an approximate reciprocal whose last bits differ between Intel and AMD, so the
+# LiDAR takes each hit's range and normal from the triangle's plane (simgen.lidar.kernels.exact_hits;
+# kitti.cpu pins the other libraries).
 EMBREE_CONFIG = b"max_isa=avx2"
 # Embree 4's enums (rtcore_common.h, rtcore_buffer.h) for one triangle geometry.
 _TRIANGLE, _INDEX, _VERTEX, _UINT3, _FLOAT3 = 0, 0, 1, 0x5003, 0x9003

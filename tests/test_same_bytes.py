@@ -69,6 +69,20 @@ def test_native_kernels_leave_the_libraries_to_choose():
     assert _run("import os, kitti; print(os.environ.get('MKL_CBWR'))", {NATIVE: "1"}) == "None"
 
 
+READ = ("import os, kitti; os.environ['MKL_CBWR'] = {branch!r}; import hashlib, torch; "
+        "from detector.infer import Detector; from kitti.cpu import portable_networks; "
+        "torch.manual_seed(0); x = torch.rand(2, 3, 64, 96); model = Detector.load(None).models[0]; "
+        "ctx = portable_networks(); ctx.__enter__(); out = model.predict_raw(x); "
+        "print(hashlib.sha256(out.detach().numpy().tobytes()).hexdigest())")
+
+
+def test_the_detector_s_read_does_not_follow_mkl_s_branch():
+    """MKL gives other bits on Intel than on AMD on every branch it offers (kitti.cpu); the
+    branches it runs on any covered CPU stand in for the vendors: the read must not move."""
+    reads = {_run(READ.format(branch=b), {}) for b in ("COMPATIBLE", "SSE4_2", "AVX2")}
+    assert len(reads) == 1
+
+
 def test_first_difference_names_the_first_file_in_path_order():
     expected = {"a/1": "0" * 64, "b/2": "1" * 64}
     assert first_difference(dict(expected), expected) is None

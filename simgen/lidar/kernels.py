@@ -10,19 +10,45 @@ import numpy as np
 
 
 @numba.njit(cache=True, nogil=True)
-def inverse_doubled_areas(v, f):
-    """Per triangle (faces `f` into float32 vertices `v`), 1 / |edge cross product| as float32:
-    numpy's float64 cross product and norm (the same operations in the same order, so the same
-    bits) in one pass, without the (F, 3, 3) gather."""
-    out = np.empty(f.shape[0], np.float32)
+def triangle_planes(v, f):
+    """Per triangle (faces `f` into float32 vertices `v`): its plane as float64 rows (n, n . a),
+    n the edge cross product (b - a) x (c - a), and 1 / |n| as float32, in one pass without the
+    (F, 3, 3) gather (numpy's float64 cross product and norm: the same operations in the same
+    order, so the same bits)."""
+    plane = np.empty((f.shape[0], 4), np.float64)
+    inv = np.empty(f.shape[0], np.float32)
     for i in range(f.shape[0]):
         a, b, c = f[i, 0], f[i, 1], f[i, 2]
         ax, ay, az = np.float64(v[a, 0]), np.float64(v[a, 1]), np.float64(v[a, 2])
         ux, uy, uz = v[b, 0] - ax, v[b, 1] - ay, v[b, 2] - az
         wx, wy, wz = v[c, 0] - ax, v[c, 1] - ay, v[c, 2] - az
         nx, ny, nz = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
-        out[i] = 1.0 / max(math.sqrt(nx * nx + ny * ny + nz * nz), 1e-30)
-    return out
+        plane[i, 0], plane[i, 1], plane[i, 2] = nx, ny, nz
+        plane[i, 3] = nx * ax + ny * ay + nz * az
+        inv[i] = 1.0 / max(math.sqrt(nx * nx + ny * ny + nz * nz), 1e-30)
+    return plane, inv
+
+
+@numba.njit(cache=True, nogil=True)
+def exact_hits(prim, tfar, ng, origins, dirs, plane):
+    """Each hit's distance along its ray and its triangle's normal (in place in `tfar`, `ng`),
+    from the hit triangle's plane: the range in float64, (n . a - n . o) / (n . d), and n as
+    float32. Embree finds the triangle, but its own distance divides by an approximate
+    reciprocal (rcpps and a Newton step) whose last bits differ between instruction sets and
+    between Intel and AMD CPUs of one set, and its normal is rounded with or without fused
+    multiply-adds as its kernels go; these are the same bits on every CPU. A ray parallel to
+    the plane (n . d = 0) keeps Embree's range."""
+    for i in range(prim.shape[0]):
+        p = prim[i]
+        if p < 0:
+            continue
+        den = plane[p, 0] * dirs[i, 0] + plane[p, 1] * dirs[i, 1] + plane[p, 2] * dirs[i, 2]
+        if den != 0.0:
+            num = plane[p, 3] - (plane[p, 0] * origins[i, 0] + plane[p, 1] * origins[i, 1]
+                                 + plane[p, 2] * origins[i, 2])
+            tfar[i] = np.float32(num / den)
+        for a in range(3):
+            ng[i, a] = np.float32(plane[p, a])
 
 
 @numba.njit(cache=True, nogil=True)

@@ -52,8 +52,8 @@ from ..materials import CURTAIN_REFLECTIVITY, ROOM_REFLECTIVITY, WINDOW_TRANSMIT
 from ..textures import glass_cabin_bands
 from ..world import World
 from .draws import standard_normal
-from .kernels import (detect_rays, pass_apply, pass_candidates, pass_prepare, ray_origins, read_returns,
-                      window_returns)
+from .kernels import (detect_rays, exact_hits, pass_apply, pass_candidates, pass_prepare, ray_origins,
+                      read_returns, window_returns)
 from .platform import hidden_rays
 from .rays import RayTable, ray_table
 from .spec import LidarSpec
@@ -155,6 +155,7 @@ def _query(tgt: Target, spec: LidarSpec, origins: np.ndarray, d_w: np.ndarray, n
         return (np.full(n, -1, np.int32), np.full(n, np.inf, np.float32),
                 np.zeros((n, 3), np.float32))
     res = tgt.scene.run(origins, d_w, dists=spec.max_range + 1.0, output=1)
+    exact_hits(res["primID"], res["tfar"], res["Ng"], origins, d_w, tgt.tri_plane)
     return res["primID"], res["tfar"], res["Ng"]
 
 
@@ -181,6 +182,7 @@ def _pass_through(tgt: Target, spec: LidarSpec, rng: np.random.Generator, origin
             cand = sel
             break
         res = tgt.scene.run(o2, d2, dists=spec.max_range + 1.0, output=1)
+        exact_hits(res["primID"], res["tfar"], res["Ng"], o2, d2, tgt.tri_plane)
         cand = pass_apply(sel, start, res["primID"], res["tfar"], res["Ng"], prim, tfar, ng,
                           tgt.tri_passes)
     prim[cand] = -1  # still going on after MAX_PASSES surfaces: nothing comes back

@@ -25,7 +25,7 @@ from embreex.rtcore_scene import EmbreeScene
 
 from ..embree import embree_scene
 from ..world import World
-from .kernels import inverse_doubled_areas
+from .kernels import triangle_planes
 from .rays import sweep_time_of_azimuth
 from .spec import LidarSpec
 from .windows import Windows, windows_of
@@ -48,6 +48,7 @@ class Target:
     tri_glass: np.ndarray  # (F,) int32 index into glass_planes, -1 = not glass
     glass_planes: np.ndarray  # (G, K, 4) float32 outward unit normal and offset per face, zero-padded
     tri_inv_ng: np.ndarray  # (F,) float32 1 / |edge cross product|: normalises Embree's Ng
+    tri_plane: np.ndarray  # (F, 4) float64 edge cross product n and n . vertex (kernels.exact_hits)
     windows: Windows  # the façades' windows (static triangles come first)
     actor_ids: np.ndarray  # (A,) int32
     placed_time: np.ndarray  # (A,) float64 time each actor's mesh is placed at
@@ -110,14 +111,15 @@ def _glass_planes(v_all: np.ndarray, f_all: np.ndarray, panes: list[tuple[int, i
 
 def _embree_scene(verts: list, faces: list):
     """One Embree scene of every triangle (BVH built now), the concatenated vertices and faces,
-    and each triangle's inverse doubled area (for barycentric work in the kernels)."""
+    each triangle's plane (kernels.exact_hits) and inverse doubled area (for barycentric work
+    in the kernels)."""
     if not verts:
-        return EmbreeScene(), None, None, np.zeros(0, np.float32)
+        return EmbreeScene(), None, None, np.zeros((0, 4)), np.zeros(0, np.float32)
     v_all = np.ascontiguousarray(np.concatenate(verts), dtype=np.float32)
     f_all = np.ascontiguousarray(np.concatenate(faces), dtype=np.int32)
     scene = embree_scene(v_all, f_all)
     scene.run(np.zeros((1, 3), np.float32), np.ones((1, 3), np.float32))  # build the BVH now
-    return scene, v_all, f_all, inverse_doubled_areas(v_all, f_all)
+    return scene, v_all, f_all, *triangle_planes(v_all, f_all)
 
 
 def _placed(verts: list, poses: list, pose_of: list) -> list:
@@ -177,7 +179,7 @@ def build_target(world: World, spec: LidarSpec) -> Target:
     panes = [(int(f0[k]), counts[k], int(v0[k]), nvs[k]) for k, p in enumerate(parts)
              if p.material.transmittance > 0]  # glass parts: first triangle, count, first vertex, count
 
-    scene, v_all, f_all, inv_ng = _embree_scene(verts, faces)
+    scene, v_all, f_all, plane, inv_ng = _embree_scene(verts, faces)
     cat = (lambda xs, dt: np.repeat(np.array(xs, dt), counts))
     materials = tuple(mats)
     table = (lambda f: np.array([f(m) for m in materials], np.float32).reshape(-1))
@@ -199,6 +201,7 @@ def build_target(world: World, spec: LidarSpec) -> Target:
         tri_glass=tri_glass,
         glass_planes=glass_planes,
         tri_inv_ng=inv_ng,
+        tri_plane=plane,
         windows=windows_of(world, sum(counts)),
         actor_ids=np.array([a.id for a in world.actors], dtype=np.int32),
         placed_time=t_place,

@@ -8,7 +8,7 @@ import torch
 
 from detector.layers import ACTIVATIONS, Focus
 from detector.model import PRESETS, STRIDES, FlexiNet, ModelConfig, count_parameters
-from kitti.cpu import aten_convolutions
+from kitti.cpu import portable_networks
 
 
 @pytest.mark.parametrize("preset", sorted(PRESETS))
@@ -29,15 +29,45 @@ def test_output_shapes_every_preset(preset):
 
 def test_inference_convolutions_do_not_follow_torch_s_nnpack_setting():
     """`detect --batch 8` reads 16 images with the mirrored ones, a batch for which ATen would
-    take NNPACK, whose sums follow the CPU's cache sizes; inference must give ATen's own bits."""
+    take NNPACK, whose sums follow the CPU's cache sizes; the reads' products are OpenBLAS's."""
     torch.manual_seed(0)
     model = FlexiNet(ModelConfig.from_preset("small", num_classes=3)).eval()
     x = torch.rand(16, 3, 64, 96)
     out = []
     for enabled in (True, False):
-        with torch.backends.nnpack.flags(enabled=enabled), torch.no_grad(), aten_convolutions():
+        with torch.backends.nnpack.flags(enabled=enabled), torch.no_grad(), portable_networks():
             out.append(model.predict_raw(x))
     assert torch.equal(*out)
+
+
+@pytest.mark.parametrize("shape", [  # (in, out, kernel, stride, padding, dilation, groups, bias)
+    (3, 16, 3, 2, 1, 1, 1, True), (32, 64, 1, 1, 0, 1, 1, False), (24, 24, 3, 1, 1, 1, 24, False),
+    (16, 32, 5, 1, 2, 2, 4, True), (8, 12, (3, 1), (2, 1), (1, 0), 1, 1, True)])
+def test_portable_convolutions_compute_torch_s_convolution(shape):
+    cin, cout, k, s, p, d, g, bias = shape
+    conv = torch.nn.Conv2d(cin, cout, k, s, p, d, g, bias=bias)
+    x = torch.randn(3, cin, 23, 37, generator=torch.Generator().manual_seed(1))
+    with torch.no_grad():
+        want = conv(x)
+        with portable_networks():
+            got = conv(x)
+    assert got.shape == want.shape
+    torch.testing.assert_close(got, want, rtol=1e-5, atol=1e-5)
+    lin = torch.nn.Linear(cin, cout)
+    with torch.no_grad():
+        want = lin(x.transpose(1, 3))
+        with portable_networks():
+            got = lin(x.transpose(1, 3))
+    torch.testing.assert_close(got, want, rtol=1e-5, atol=1e-5)
+
+
+def test_training_keeps_torch_s_operators_and_their_gradients():
+    conv = torch.nn.Conv2d(3, 4, 3)
+    with portable_networks():
+        y = conv(torch.rand(1, 3, 8, 8))
+    assert y.requires_grad
+    y.sum().backward()
+    assert conv.weight.grad is not None and conv.weight.grad.abs().sum() > 0
 
 
 def test_presets_scale_depth_and_width():

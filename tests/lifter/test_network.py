@@ -72,8 +72,8 @@ def test_mirrored_inference_is_exactly_mirror_symmetric():
 
 def test_priors_are_the_same_whatever_torch_s_nnpack_setting():
     """A frame of 11 crops is a batch of 22 with their mirror images, for which ATen would take
-    NNPACK, whose sums follow the CPU's cache sizes: the predictor's priors must be those of
-    ATen's own convolutions either way (NNPACK on, as torch starts, gave other last bits)."""
+    NNPACK, whose sums follow the CPU's cache sizes: the predictor's priors must be the same
+    either way (its products run on OpenBLAS: kitti.cpu.portable_networks)."""
     rng = np.random.default_rng(3)
     image = rng.integers(0, 256, (375, 1242, 3), dtype=np.uint8)
     x1, y1 = rng.uniform(0, 1100, 11), rng.uniform(120, 250, 11)

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from simgen.lidar.kernels import inverse_doubled_areas
+from simgen.lidar.kernels import triangle_planes
 from simgen.lidar.target import _placed
 
 
@@ -21,7 +21,7 @@ def test_placed_matches_per_part_products():
         assert np.array_equal(out, want)
 
 
-def test_inverse_doubled_areas_matches_numpy():
+def test_triangle_planes_match_numpy():
     rng = np.random.default_rng(1)
     v = (rng.normal(size=(5000, 3)) * np.array([1.0, 30.0, 1e-3])).astype(np.float32)
     f = rng.integers(0, len(v), (20000, 3)).astype(np.int32)
@@ -29,4 +29,8 @@ def test_inverse_doubled_areas_matches_numpy():
     tri = v[f].astype(np.float64)
     ng = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
     want = (1.0 / np.maximum(ng, 1e-30)).astype(np.float32)
-    assert inverse_doubled_areas(v, f).tobytes() == want.tobytes()
+    plane, inv = triangle_planes(v, f)
+    assert inv.tobytes() == want.tobytes()
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    assert plane[:, :3].tobytes() == n.tobytes()
+    assert np.allclose(plane[:, 3], np.einsum("ij,ij->i", n, tri[:, 0]), rtol=1e-12, atol=1e-9)
