@@ -113,7 +113,6 @@ def portable_networks():
     its COMPATIBLE branch (the detector's boxes for one generated frame differed in the printed
     digits under every branch MKL_CBWR names). Gradients and other dtypes keep PyTorch's
     operators. torch is imported here, not with kitti."""
-    import torch
     import torch.nn.functional as F
 
     conv2d, linear = F.conv2d, F.linear
@@ -127,8 +126,9 @@ def portable_networks():
 
 def _plain(torch, *tensors) -> bool:
     """Whether the operator's tensors are float32 on the CPU with no gradient to record."""
-    grad = torch.is_grad_enabled() and any(t.requires_grad for t in tensors if t is not None)
-    return not grad and all(t.dtype == torch.float32 and t.device.type == "cpu" for t in tensors if t is not None)
+    tensors = [t for t in tensors if t is not None]
+    grad = torch.is_grad_enabled() and any(t.requires_grad for t in tensors)
+    return not grad and all(t.dtype == torch.float32 and t.device.type == "cpu" for t in tensors)
 
 
 def _pair(v) -> tuple[int, int]:
@@ -137,7 +137,7 @@ def _pair(v) -> tuple[int, int]:
 
 def _blas_conv2d(torch_conv2d, x, weight, bias=None, stride=1, padding=0, dilation=1, groups=1):
     """F.conv2d as im2col (ATen's unfold, a copy) and one stacked matrix product per image, the
-    groups stacked (numpy.matmul on OpenBLAS)."""
+    groups stacked (numpy.matmul on OpenBLAS); a depthwise one tap by tap (`_depthwise`)."""
     import numpy as np
     import torch
     import torch.nn.functional as F
@@ -148,6 +148,12 @@ def _blas_conv2d(torch_conv2d, x, weight, bias=None, stride=1, padding=0, dilati
     n, c, h, w = x.shape
     o, _, kh, kw = weight.shape
     ho, wo = (h + 2 * ph - dh * (kh - 1) - 1) // sh + 1, (w + 2 * pw - dw * (kw - 1) - 1) // sw + 1
+    if groups == c == o:
+        out = _depthwise(F.pad(x, (pw, pw, ph, ph)).detach().numpy(), weight.detach().numpy(),
+                         (sh, sw), (dh, dw), (ho, wo))
+        if bias is not None:
+            out += bias.detach().numpy().reshape(1, o, 1, 1)
+        return torch.from_numpy(out)
     if (kh, kw, sh, sw, ph, pw) == (1, 1, 1, 1, 0, 0):
         cols = x.contiguous().reshape(n, c, h * w)
     else:
@@ -161,6 +167,25 @@ def _blas_conv2d(torch_conv2d, x, weight, bias=None, stride=1, padding=0, dilati
     if bias is not None:
         out += bias.detach().numpy().reshape(groups, o // groups, 1)
     return torch.from_numpy(out.reshape(n, o, ho, wo))
+
+
+def _depthwise(xp, weight, stride, dilation, size):
+    """A depthwise convolution of the padded input `xp` (N, C, H, W): per tap, in row-major
+    order, the strided window times the tap's weight per channel, added in that order (numpy's
+    float32 multiply and add, one rounding each). A stack of (1 x k) by (k x L) products per
+    channel would cost six times as long."""
+    import numpy as np
+
+    (sh, sw), (dh, dw), (ho, wo) = stride, dilation, size
+    c, _, kh, kw = weight.shape
+    out = np.zeros((xp.shape[0], c, ho, wo), np.float32)
+    term = np.empty((c, ho, wo), np.float32)
+    taps = [(i * dh, j * dw, weight[:, 0, i, j].reshape(c, 1, 1)) for i in range(kh) for j in range(kw)]
+    for image, acc in zip(xp, out):  # one image's planes stay in the cache through the taps
+        for y, x, wt in taps:
+            np.multiply(image[:, y:y + sh * (ho - 1) + 1:sh, x:x + sw * (wo - 1) + 1:sw], wt, out=term)
+            acc += term
+    return out
 
 
 def _blas_linear(torch_linear, x, weight, bias=None):

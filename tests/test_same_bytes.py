@@ -16,7 +16,8 @@ from kitti.cpu import NATIVE, PINS, covered
 from testbed.fingerprint import MANIFEST, first_difference, manifest, read_manifest
 
 ROOT = Path(__file__).resolve().parents[1]
-pytestmark = pytest.mark.skipif(not covered(), reason="the same-bytes promise covers x86-64 with AVX2 and FMA")
+pytestmark = pytest.mark.skipif(not covered(),
+                                reason="the same-bytes promise covers x86-64 with AVX2 and FMA")
 
 # Every setting the project's dependencies read to choose their kernels, each pointed away from
 # the pins: numpy's loops below AVX2, OpenBLAS's Sandy Bridge kernels on two threads, ATen's

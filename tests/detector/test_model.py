@@ -42,7 +42,8 @@ def test_inference_convolutions_do_not_follow_torch_s_nnpack_setting():
 
 @pytest.mark.parametrize("shape", [  # (in, out, kernel, stride, padding, dilation, groups, bias)
     (3, 16, 3, 2, 1, 1, 1, True), (32, 64, 1, 1, 0, 1, 1, False), (24, 24, 3, 1, 1, 1, 24, False),
-    (16, 32, 5, 1, 2, 2, 4, True), (8, 12, (3, 1), (2, 1), (1, 0), 1, 1, True)])
+    (16, 32, 5, 1, 2, 2, 4, True), (8, 12, (3, 1), (2, 1), (1, 0), 1, 1, True),
+    (16, 16, 3, 2, 1, 1, 16, True), (8, 8, 3, 1, 2, 2, 8, False)])  # depthwise: tap by tap
 def test_portable_convolutions_compute_torch_s_convolution(shape):
     cin, cout, k, s, p, d, g, bias = shape
     conv = torch.nn.Conv2d(cin, cout, k, s, p, d, g, bias=bias)
