@@ -154,8 +154,15 @@ def _query(tgt: Target, spec: LidarSpec, origins: np.ndarray, d_w: np.ndarray, n
     if not tgt.n_triangles:
         return (np.full(n, -1, np.int32), np.full(n, np.inf, np.float32),
                 np.zeros((n, 3), np.float32))
-    res = tgt.scene.run(origins, d_w, dists=spec.max_range + 1.0, output=1)
-    exact_hits(res["primID"], res["tfar"], res["Ng"], origins, d_w, tgt.tri_plane)
+    return _cast(tgt, spec, origins, d_w)
+
+
+def _cast(tgt: Target, spec: LidarSpec, origins: np.ndarray, dirs: np.ndarray
+          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One batched Embree query: each ray's triangle (-1: none), and its range and normal from
+    that triangle's plane (kernels.exact_hits: the same bits on every CPU)."""
+    res = tgt.scene.run(origins, dirs, dists=spec.max_range + 1.0, output=1)
+    exact_hits(res["primID"], res["tfar"], res["Ng"], origins, dirs, tgt.tri_plane)
     return res["primID"], res["tfar"], res["Ng"]
 
 
@@ -181,10 +188,7 @@ def _pass_through(tgt: Target, spec: LidarSpec, rng: np.random.Generator, origin
         if not len(sel):
             cand = sel
             break
-        res = tgt.scene.run(o2, d2, dists=spec.max_range + 1.0, output=1)
-        exact_hits(res["primID"], res["tfar"], res["Ng"], o2, d2, tgt.tri_plane)
-        cand = pass_apply(sel, start, res["primID"], res["tfar"], res["Ng"], prim, tfar, ng,
-                          tgt.tri_passes)
+        cand = pass_apply(sel, start, *_cast(tgt, spec, o2, d2), prim, tfar, ng, tgt.tri_passes)
     prim[cand] = -1  # still going on after MAX_PASSES surfaces: nothing comes back
     return loss if any_glass else None
 
