@@ -182,9 +182,12 @@ PLATE = Material("plate", (0.90, 0.90, 0.85), 220.0, incidence_exponent=6.0)
 # No measured LiDAR figure was found; a diffuse 0.60, kept from before.
 HEADLIGHT = Material("headlight", (0.95, 0.95, 0.90), 0.60)
 # Rear lamps hold a red reflex reflector (UN ECE R3 class IA: at least 300 mcd/lx at 20'
-# observation, 0 deg entrance, 100 at 20 deg): over the lamp's area of about 0.028 m^2 in the
-# meshes, pi x 0.3 / 0.028 = 34; cos^18 gives the fall to a third at 20 deg.
-TAILLIGHT = Material("taillight", (0.60, 0.02, 0.02), 34.0, incidence_exponent=18.0)
+# observation, 0 deg entrance, 100 at 20 deg): over the lens's face on a car's back, 0.28 x 0.20
+# m (simgen.meshes.TAIL_LAMP_*), pi x 0.3 / 0.056 = 17; cos^18 gives the fall to a third at 20
+# deg. Where the lens wraps round the corner and along the side no reflector faces out: a red
+# lens over an aluminised reflector, read as the headlamp (TAIL_LENS).
+TAILLIGHT = Material("taillight", (0.60, 0.02, 0.02), 17.0, incidence_exponent=18.0)
+TAIL_LENS = Material("taillight", (0.60, 0.02, 0.02), 0.60)
 FRAME = paint_material("bike_frame", (0.15, 0.15, 0.17))
 # Bumpers, sills, grilles and mirror housings of black plastic: polypropylene coloured with carbon
 # black, the pigment that absorbs the NIR too (see above): by the rule above, 0.07 (Levinson et

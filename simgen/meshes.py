@@ -18,7 +18,7 @@ import trimesh
 from scipy.spatial import ConvexHull
 
 # The vehicle materials at 905 nm and their sources: simgen.materials.
-from .materials import (FRAME, GLASS, HEADLIGHT, PLATE, RIM, TAILLIGHT, TRIM, TYRE, paint_material,
+from .materials import (FRAME, GLASS, HEADLIGHT, PLATE, RIM, TAIL_LENS, TAILLIGHT, TRIM, TYRE, paint_material,
                         skin_reflectivity, textile_reflectivity)
 from .facets import cross
 from .usermesh import build_user_parts
@@ -140,6 +140,16 @@ REAR_PILLAR = 0.10
 # roof, the width of the body less its D pillars. Without it the front was a van's only glass,
 # and the size/orientation network read real vans seen from behind as seen from in front.
 VAN_REAR_GLASS = ((0.56, 0.62), (0.84, 0.90), (0.72, 0.86))
+
+# A car's rear lamp cluster (stop, rear position and direction-indicator lamps and the red reflex
+# reflector behind one lens): UN ECE R48 asks the rear position lamps to be seen from 80 deg
+# outboard of straight behind, which a lens on the back face alone cannot give, so the clusters
+# wrap round the body's corner onto its side; their outer edges lie within 400 mm of the body's
+# (R48). The lens reaches 0.40 m in from the body's edge, or less on a narrow body: the inner
+# edges of the two stop lamps stand at least 600 mm apart (R48, STOP_LAMP_GAP). It wraps 0.10 m
+# along the side and stands 0.06-0.26 m below the deck (a lens 0.20 m high; shapes read off makers'
+# rear views, no survey).
+TAIL_LAMP_INNER, TAIL_LAMP_WRAP, TAIL_LAMP_Z, STOP_LAMP_GAP = 0.40, 0.10, (0.26, 0.06), 0.60
 
 # The emissive look of lamp materials at night (renderer): name -> linear RGB emission.
 EMISSIVE = {"headlight": (4.0, 4.0, 3.6), "taillight": (2.5, 0.05, 0.05)}
@@ -540,8 +550,24 @@ def _car_ends(rng, k: _CarLayout, l: float, paint: Material) -> list[Part]:
     for s in (-1, 1):
         y = sorted((s * (k.body - 0.42), s * (k.body - 0.14)))
         parts += [Part(_box(k.front - 0.02, k.front + 0.01, *y, k.nose - 0.15, k.nose - 0.05), HEADLIGHT),
-                  Part(_box(k.back - 0.012, k.back + 0.02, *y, k.deck - 0.20, k.deck - 0.07), TAILLIGHT)]
+                  *[Part(m, mat) for m, mat in zip(_tail_lamp(k, s), (TAILLIGHT, TAIL_LENS, TAIL_LENS))]]
     return parts
+
+
+def _tail_lamp(k: _CarLayout, s: float) -> list[Shape]:
+    """One rear lamp cluster, on side s: a face on the back from TAIL_LAMP_INNER of the body's edge
+    (at most, STOP_LAMP_GAP apart) out to the plan chamfer (0.12 m), round the chamfer and TAIL_LAMP_WRAP along the body side,
+    each piece 12 mm proud of the body and 20 mm into it, TAIL_LAMP_Z below the deck."""
+    z0, z1 = (k.deck - z for z in TAIL_LAMP_Z)
+    c, e = 0.12, k.body
+    inner = max(e - TAIL_LAMP_INNER, STOP_LAMP_GAP / 2)
+    back = _box(k.back - 0.012, k.back + 0.02, *sorted((s * inner, s * (e - c))), z0, z1)
+    a, b = np.array([k.back, s * (e - c)]), np.array([k.back + c, s * e])  # the chamfer's ends
+    n = np.array([-1.0, s]) / np.sqrt(2.0)  # its outward normal
+    ring = [a - 0.02 * n, b - 0.02 * n, b + 0.012 * n, a + 0.012 * n]
+    chamfer = hexahedron([[*q, z] for z in (z0, z1) for q in ring])
+    side = _box(k.back + c, k.back + c + TAIL_LAMP_WRAP, s * (e - 0.02), s * (e + 0.012), z0, z1)
+    return [back, chamfer, side]
 
 
 def _car_sides(k: _CarLayout, c: Material) -> list[Part]:

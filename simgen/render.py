@@ -75,10 +75,11 @@ SKY_ZENITH, SKY_HORIZON, CLOUD = (0.30, 0.42, 0.75), (0.62, 0.68, 0.78), (1.45, 
 GLOSSY = {"paint", "glass", "headlight", "taillight"}
 F0 = 0.04
 # Stop lamps lit by day (Actor.stop_lamps): ECE R7 asks 60 to 185 cd of a stop lamp; their geometric
-# mean, 105 cd, over a car's tail-lamp face (0.28 x 0.13 m, simgen.meshes) is about 2,900 cd/m2.
-# On this look's scale sunlit white, about 30,000 cd/m2 (SKY_ZENITH's note), is 1.5, so one unit is
-# about 20,000 cd/m2: 0.145 in luminance, all of it in the red primary (luminance 0.2126 R).
-STOP_LAMP = (2900.0 / 20000.0 / 0.2126, 0.0, 0.0)
+# mean, 105 cd, over a car's rear lamp face (0.28 x 0.20 m, simgen.meshes.TAIL_LAMP_*) is about
+# 1,900 cd/m2. On this look's scale sunlit white, about 30,000 cd/m2 (SKY_ZENITH's note), is 1.5,
+# so one unit is about 20,000 cd/m2: 0.094 in luminance, all of it in the red primary (luminance
+# 0.2126 R).
+STOP_LAMP = (105.0 / (0.28 * 0.20) / 20000.0 / 0.2126, 0.0, 0.0)
 HIGHLIGHT_EXPONENT = 300.0
 GROUND_RADIANCE = 0.08  # what a glossy face mirrors below the horizon (dark ground)
 

@@ -105,10 +105,11 @@ def test_car_styles_follow_height_and_length():
 
 def test_a_car_stays_within_twice_the_old_triangle_budget():
     """The previous car had 324 triangles; the renderer and the LiDAR pay for every one. Twice
-    that, and the two bumpers' black valances (a box each) on top."""
+    that, and on top the two bumpers' black valances and the rear lamps' pieces round the corners
+    (a box each: six)."""
     rng = np.random.default_rng(7)
     counts = [sum(len(p.mesh.faces) for p in build_actor_parts(sample_recipe("Car", rng))) for _ in range(50)]
-    assert max(counts) <= 2 * 324 + 2 * 12
+    assert max(counts) <= 2 * 324 + 6 * 12
 
 
 @pytest.mark.parametrize("cls", ["Car", "Pedestrian", "Cyclist"])
@@ -340,3 +341,37 @@ def test_hull_turns_every_face_as_numpy_does():
         shape = hull(pts)
         ref_v, ref_f = _numpy_hull(pts)
         assert np.array_equal(shape.vertices, ref_v) and np.array_equal(shape.faces, ref_f)
+
+
+def test_rear_lamps_wrap_round_the_corner_and_are_seen_from_80_degrees_outboard():
+    """UN ECE R48 asks a car's rear position lamps to be seen from 80 deg outboard of straight
+    behind and its stop lamps' inner edges to stand 600 mm apart: on each side the lamp's lens
+    keeps that gap, reaches the body's side, and, seen along parallel rays 80 deg outboard (and
+    straight behind), shows at least half the area its face on the back shows from straight
+    behind (a lens on the back alone shows only its 12 mm proud edge there)."""
+    from simgen.meshes import STOP_LAMP_GAP, TAIL_LAMP_INNER, TAIL_LAMP_Z
+
+    rng = np.random.default_rng(9)
+    step = 0.004
+    for _ in range(10):
+        recipe = sample_recipe("Car", rng)
+        parts = build_actor_parts(recipe)
+        k = _car_layout(np.random.default_rng(recipe["seed"]), recipe["dims"])
+        lamps = np.concatenate([p.mesh.vertices for p in parts if p.material.name == "taillight"])
+        zc = k.deck - sum(TAIL_LAMP_Z) / 2
+        face = (min(TAIL_LAMP_INNER, k.body - STOP_LAMP_GAP / 2) - 0.12) * (TAIL_LAMP_Z[0] - TAIL_LAMP_Z[1])
+        for s in (-1.0, 1.0):
+            side = lamps[lamps[:, 1] * s > 0]
+            assert np.abs(side[:, 1]).min() >= STOP_LAMP_GAP / 2 - 1e-9  # inner edges 600 mm apart
+            assert np.abs(side[:, 1]).max() >= k.body  # on round the corner
+            for deg in (0.0, 80.0):
+                a = np.radians(deg)
+                d = np.array([np.cos(a), -s * np.sin(a), 0.0])  # towards the car
+                u = np.array([np.sin(a), s * np.cos(a), 0.0])  # across the rays, level
+                corner = np.array([k.back, s * k.body, zc])
+                g = np.arange(-0.6, 0.6, step)
+                du, dz = np.meshgrid(g, np.arange(-0.2, 0.2, step))
+                origins = corner - 5.0 * d + du.reshape(-1, 1) * u + np.c_[0 * dz.ravel(), 0 * dz.ravel(),
+                                                                           dz.ravel()]
+                seen = _seen(parts, origins, np.tile(d, (len(origins), 1)))
+                assert (seen == "taillight").sum() * step**2 >= 0.5 * face
