@@ -51,7 +51,7 @@ import numpy as np
 from ..materials import CURTAIN_REFLECTIVITY, ROOM_REFLECTIVITY, WINDOW_TRANSMITTANCE
 from ..textures import glass_cabin_bands
 from ..world import World
-from .draws import standard_normal
+from .draws import CLAMP, DETECT, PASS, normals, ray_words, sweep_key, to_uniform, uniforms
 from .kernels import (detect_rays, exact_hits, pass_apply, pass_candidates, pass_prepare, ray_origins,
                       read_returns, window_returns)
 from .platform import hidden_rays
@@ -166,20 +166,21 @@ def _cast(tgt: Target, spec: LidarSpec, origins: np.ndarray, dirs: np.ndarray
     return res["primID"], res["tfar"], res["Ng"]
 
 
-def _pass_through(tgt: Target, spec: LidarSpec, rng: np.random.Generator, origins: np.ndarray,
+def _pass_through(tgt: Target, spec: LidarSpec, key: np.ndarray, origins: np.ndarray,
                   d_w: np.ndarray, prim: np.ndarray, tfar: np.ndarray, ng: np.ndarray,
                   cand: np.ndarray) -> np.ndarray | None:
     """Rays through glass and leaves (module docstring, step 2): at most MAX_PASSES rounds of one
     batched Embree query of the rays that go on (kernels.pass_prepare, pass_apply). A ray that
     enters glass leaves the glass solid where its face planes say, so a car's glasshouse costs
     one query, not two. Updates `prim`, `tfar` and `ng` in place (a ray that goes on into
-    nothing gets prim -1); returns each ray's two-way glass loss (None: no glass met)."""
+    nothing gets prim -1); returns each ray's two-way glass loss (None: no glass met). Each
+    candidate draws one uniform of its own per surface (draws.PASS + the round)."""
     loss = np.ones(len(prim), np.float32)
     any_glass = False
-    for _ in range(MAX_PASSES):
+    for k in range(MAX_PASSES):
         if not len(cand):
             break
-        u = rng.random(len(cand), dtype=np.float32)  # one per candidate: part of the seed's meaning
+        u = uniforms(key, cand, PASS + k)
         sel, o2, d2, start, glass = pass_prepare(cand, u, prim, tfar, ng, origins, d_w, tgt.tri_inv_ng,
                                                  tgt.tri_mat, tgt.mat_transmittance, tgt.mat_porosity,
                                                  tgt.tri_glass, tgt.glass_planes, loss, PANE_MAX,
@@ -208,16 +209,16 @@ def _through_windows(tgt: Target, origins: np.ndarray, d_w: np.ndarray, prim: np
     return (out, refl) if hits else (loss, None)
 
 
-def _detect(spec: LidarSpec, sweep: _Sweep, rng: np.random.Generator, beta: float, tgt: Target,
+def _detect(spec: LidarSpec, sweep: _Sweep, words: np.ndarray, beta: float, tgt: Target,
             origins: np.ndarray, d_w: np.ndarray, prim: np.ndarray, tfar: np.ndarray, ng: np.ndarray,
             loss: np.ndarray | None, refl: np.ndarray | None, hidden: np.ndarray):
     """Steps 3-5 of the module docstring (kernels.detect_rays): the kept rays (none of
     `hidden`), their true range, rho_eff, detection threshold (on the true range: the echo's
-    power does not see the noise), actor id and the uniform of the reading's scatter. Draws one
-    uniform per ray (drop-out, then the reading): part of the seed's meaning."""
+    power does not see the noise), actor id and the uniform of the reading's scatter. Each ray
+    draws one uniform of its own (its block's word draws.DETECT: drop-out, then the reading)."""
     e32 = _NONE
     ext = np.exp(np.float32(-2.0 * beta) * tfar) if beta > 0 else e32
-    u = rng.random(len(prim), dtype=np.float32)
+    u = to_uniform(words[DETECT])
     motion = spec.motion and tgt.first_moving < tgt.n_triangles
     rays = sweep.rays
     return detect_rays(prim, tfar, ng, d_w, origins, tgt.tri_inv_ng, e32 if loss is None else loss,
@@ -251,20 +252,19 @@ def _weather_echoes(world: World, spec: LidarSpec, rng: np.random.Generator, n: 
     return idx, full_r[idx].astype(np.float32), full_rc[idx], full_aid[idx]
 
 
-def _read(spec: LidarSpec, sweep: _Sweep, rng: np.random.Generator, beta: float, idx: np.ndarray,
-          r: np.ndarray, rho: np.ndarray, need: np.ndarray, v: np.ndarray):
+def _read(spec: LidarSpec, sweep: _Sweep, key: np.ndarray, words: np.ndarray, beta: float,
+          idx: np.ndarray, r: np.ndarray, rho: np.ndarray, need: np.ndarray, v: np.ndarray):
     """Steps 5 (range noise) and 8 (reflectance) of the module docstring (kernels.read_returns):
-    the (N, 4) points and each return's ring, azimuth and time. Draws one normal per return for
-    its range noise (after the uniforms: part of the seed's meaning; draws.standard_normal, numpy's
-    numbers), then, with a reading scatter, one uniform per return for the clamp's own scatter
-    draw (after the normals, so the points' positions do not depend on it). `v`
+    the (N, 4) points and each return's ring, azimuth and time. Each return's ray draws one
+    normal for its range noise (draws.normals) and, with a reading scatter, one uniform for the
+    clamp's own scatter draw (its block's word draws.CLAMP). `v`
     (kernels.detect_rays) is -1 where the laser reads 0, else a uniform that picks the reading's
     scatter from _scatter_quantiles."""
     f32 = np.float32
     ext = np.exp(f32(-2.0 * beta) * r) if beta > 0 else _NONE
     noisy = spec.noise_sigma > 0 or spec.bias_sigma > 0
-    noise = standard_normal(rng, len(idx)) if noisy else _NONE
-    clamp_v = rng.random(len(idx), dtype=f32) if spec.reading_sigma > 0 else v
+    noise = normals(key, idx, words) if noisy else _NONE
+    clamp_v = to_uniform(words[CLAMP, idx]) if spec.reading_sigma > 0 else v
     rays = sweep.rays
     source = rays.source if rays.source is not None else _NONE3
     return read_returns(idx, r, rho, need, v, clamp_v, sweep.scatter, ext, noise, f32(spec.noise_sigma),
@@ -291,13 +291,17 @@ def scan(world: World, spec: LidarSpec, seed: int | np.random.Generator,
     """Scan `world` with `spec`. Same world, spec and seed: the same points, bit for bit.
 
     `target` (from build_target(world, spec)) can be passed to reuse the Embree scene.
-    Arithmetic runs in float32 (1e-5 m at 100 m) except the motion correction.
+    Arithmetic runs in float32 (1e-5 m at 100 m) except the motion correction. The seed's
+    generator gives the sweep's key (draws: each ray's numbers are its own), then the weather's
+    echoes.
     """
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+    key = sweep_key(rng)
     sweep = _sweep(spec)
     rays = sweep.rays
     tgt = target if target is not None else build_target(world, spec)
     n = len(rays.time)
+    words = ray_words(key, n)
 
     d_w = _world_dirs(spec, tuple(world.lidar_pose[:3, :3].ravel().tolist()))
     origins = _origins(world, spec, rays, n)
@@ -306,14 +310,14 @@ def scan(world: World, spec: LidarSpec, seed: int | np.random.Generator,
     if spec.transmission and tgt.n_triangles:
         cand = pass_candidates(prim, tgt.tri_passes)
         if len(cand):
-            loss = _pass_through(tgt, spec, rng, origins, d_w, prim, tfar, ng, cand)
+            loss = _pass_through(tgt, spec, key, origins, d_w, prim, tfar, ng, cand)
         if tgt.windows.n_walls:
             loss, refl = _through_windows(tgt, origins, d_w, prim, tfar, loss)
 
     beta = total_extinction(world.weather) if spec.weather else 0.0
     onboard = world.rig is not None and world.rig.kind == "onboard"  # the car under the sensor hides
     hidden = sweep.hidden if onboard else _NONE_BOOL
-    idx, r, rho, need, aid, v = _detect(spec, sweep, rng, beta, tgt, origins, d_w, prim, tfar, ng, loss,
+    idx, r, rho, need, aid, v = _detect(spec, sweep, words, beta, tgt, origins, d_w, prim, tfar, ng, loss,
                                         refl, hidden)
     if spec.weather and (world.weather.fog_extinction > 0 or world.weather.rain_rate > 0):
         kept = np.full(n, -1.0, np.float32)
@@ -324,7 +328,7 @@ def scan(world: World, spec: LidarSpec, seed: int | np.random.Generator,
         if onboard:  # nor does a weather echo come back from a hidden direction
             seen = ~hidden[idx]
             idx, r, rho, need, aid, v = (a[seen] for a in (idx, r, rho, need, aid, v))
-    points, ring, azimuth, time = _read(spec, sweep, rng, beta, idx, r, rho, need, v)
+    points, ring, azimuth, time = _read(spec, sweep, key, words, beta, idx, r, rho, need, v)
     return LidarScan(points=points, ring=ring, azimuth=azimuth, time=time, actor_id=aid)
 
 
