@@ -19,7 +19,9 @@ some CPUs, no longer the same bytes everywhere). A CPU without AVX2 and FMA is n
 the libraries run what the CPU has and the outputs may differ in their last bits. One case stays
 open on covered CPUs: where a LiDAR ray meets two triangles at exactly the same distance (about
 one ray in 100,000 on a street, on the diagonal of a flat quad), Embree takes the first it
-reaches, and the order it reaches them in could follow its reciprocal's last bits.
+reaches, and the order it reaches them in could follow its reciprocal's last bits. Such a ray
+changes its own return and no other: each ray draws its own random numbers
+(simgen.lidar.draws).
 """
 
 from __future__ import annotations
