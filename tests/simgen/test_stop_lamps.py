@@ -86,8 +86,14 @@ def test_lit_lamps_change_only_the_pixels_of_their_own_vehicles_and_redden_them(
     changed = np.any(lit.color != dark.color, axis=2)
     braking = [a.id for a in world.actors if _moving_vehicle(a)]
     assert changed.sum() > 20  # the leader's lamps, 9 m ahead, cover many pixels
-    # Shadows and lamps never bleed onto other objects; a pixel the lamp lights is redder.
-    assert np.isin(lit.instance[changed], braking).all()
+    # Shadows and lamps never bleed onto other objects: a changed pixel is a braking vehicle's or
+    # borders one (the lamps wrap round the body's corner, onto its outline, and 4x MSAA blends an
+    # outline pixel's samples of both sides); a pixel the lamp lights is redder.
+    own = np.isin(lit.instance, braking)
+    near = own.copy()
+    for dy, dx in ((-1, 0), (1, 0), (0, -1), (0, 1), (-1, -1), (-1, 1), (1, -1), (1, 1)):
+        near |= np.roll(own, (dy, dx), axis=(0, 1))
+    assert near[changed].all() and own[changed].mean() > 0.9
     r, g = (c.astype(int) for c in (lit.color[changed][:, 0], lit.color[changed][:, 1]))
     r0, g0 = (c.astype(int) for c in (dark.color[changed][:, 0], dark.color[changed][:, 1]))
     assert np.all(r - g >= r0 - g0) and np.mean(r - r0) > 20
