@@ -150,6 +150,8 @@ VAN_REAR_GLASS = ((0.56, 0.62), (0.84, 0.90), (0.72, 0.86))
 # along the side and stands 0.06-0.26 m below the deck (a lens 0.20 m high; shapes read off makers'
 # rear views, no survey).
 TAIL_LAMP_INNER, TAIL_LAMP_WRAP, TAIL_LAMP_Z, STOP_LAMP_GAP = 0.40, 0.10, (0.26, 0.06), 0.60
+# A car body's four vertical corners are cut at 45 degrees by this much in plan (_chamfered).
+PLAN_CHAMFER = 0.12
 
 # The emissive look of lamp materials at night (renderer): name -> linear RGB emission.
 EMISSIVE = {"headlight": (4.0, 4.0, 3.6), "taillight": (2.5, 0.05, 0.05)}
@@ -495,7 +497,7 @@ def _car_body(rng, k: _CarLayout, c: Material) -> list[Part]:
     lower = _chamfered([[k.front - 0.04, k.sill], [k.front, k.sill + 0.08], [k.front, k.nose - 0.10],
                         [k.front - 0.12, k.nose], [k.cowl, k.belt], [k.glass_end, k.belt],
                         [k.back + 0.06, k.deck], [k.back, k.deck - 0.06], [k.back, k.tail + 0.08],
-                        [k.back + 0.04, k.tail], *_underside(k)], k.body, 0.12)
+                        [k.back + 0.04, k.tail], *_underside(k)], k.body, PLAN_CHAMFER)
     (roof_f, roof_r), top = k.roof, k.h - ROOF
     yb, yt, zb = k.body - 0.03, k.body * rng.uniform(0.76, 0.82), k.belt - 0.02
     cabin = hexahedron([[k.cowl, -yb, zb], [k.glass_end, -yb, zb], [k.glass_end, yb, zb], [k.cowl, yb, zb],
@@ -556,10 +558,11 @@ def _car_ends(rng, k: _CarLayout, l: float, paint: Material) -> list[Part]:
 
 def _tail_lamp(k: _CarLayout, s: float) -> list[Shape]:
     """One rear lamp cluster, on side s: a face on the back from TAIL_LAMP_INNER of the body's edge
-    (at most, STOP_LAMP_GAP apart) out to the plan chamfer (0.12 m), round the chamfer and TAIL_LAMP_WRAP along the body side,
-    each piece 12 mm proud of the body and 20 mm into it, TAIL_LAMP_Z below the deck."""
+    (at most, STOP_LAMP_GAP apart) out to the plan chamfer, round the chamfer and TAIL_LAMP_WRAP
+    along the body side, each piece 12 mm proud of the body and 20 mm into it, TAIL_LAMP_Z below
+    the deck."""
     z0, z1 = (k.deck - z for z in TAIL_LAMP_Z)
-    c, e = 0.12, k.body
+    c, e = PLAN_CHAMFER, k.body
     inner = max(e - TAIL_LAMP_INNER, STOP_LAMP_GAP / 2)
     back = _box(k.back - 0.012, k.back + 0.02, *sorted((s * inner, s * (e - c))), z0, z1)
     a, b = np.array([k.back, s * (e - c)]), np.array([k.back + c, s * e])  # the chamfer's ends

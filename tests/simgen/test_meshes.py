@@ -349,7 +349,7 @@ def test_rear_lamps_wrap_round_the_corner_and_are_seen_from_80_degrees_outboard(
     keeps that gap, reaches the body's side, and, seen along parallel rays 80 deg outboard (and
     straight behind), shows at least half the area its face on the back shows from straight
     behind (a lens on the back alone shows only its 12 mm proud edge there)."""
-    from simgen.meshes import STOP_LAMP_GAP, TAIL_LAMP_INNER, TAIL_LAMP_Z
+    from simgen.meshes import PLAN_CHAMFER, STOP_LAMP_GAP, TAIL_LAMP_INNER, TAIL_LAMP_Z
 
     rng = np.random.default_rng(9)
     step = 0.004
@@ -359,7 +359,7 @@ def test_rear_lamps_wrap_round_the_corner_and_are_seen_from_80_degrees_outboard(
         k = _car_layout(np.random.default_rng(recipe["seed"]), recipe["dims"])
         lamps = np.concatenate([p.mesh.vertices for p in parts if p.material.name == "taillight"])
         zc = k.deck - sum(TAIL_LAMP_Z) / 2
-        face = (min(TAIL_LAMP_INNER, k.body - STOP_LAMP_GAP / 2) - 0.12) * (TAIL_LAMP_Z[0] - TAIL_LAMP_Z[1])
+        face = (min(TAIL_LAMP_INNER, k.body - STOP_LAMP_GAP / 2) - PLAN_CHAMFER) * (TAIL_LAMP_Z[0] - TAIL_LAMP_Z[1])
         for s in (-1.0, 1.0):
             side = lamps[lamps[:, 1] * s > 0]
             assert np.abs(side[:, 1]).min() >= STOP_LAMP_GAP / 2 - 1e-9  # inner edges 600 mm apart
