@@ -22,11 +22,12 @@ import numpy as np
 
 from kitti.calib import write_calib
 from kitti.derived import MANIFEST, dump_json
-from kitti.io import atomic_write_bytes, atomic_write_text
+from kitti.io import WriteBehind, atomic_write_bytes, atomic_write_text
 from kitti.jobs import Backend, InProcess
 from kitti.labels import write_label
 from kitti.planes import write_plane
 from kitti.splits import write_split
+from kitti.velodyne_info import info_path
 
 from . import meta as meta_io
 from .factors import factor_rng
@@ -102,6 +103,9 @@ def _lidar_api():
     return lidar
 
 
+_WRITE_BEHIND = WriteBehind()  # one per process: each worker releases what it wrote
+
+
 def make_frame(job: Job) -> str:
     """Sample, render, label and write one frame; skip it if it is already complete."""
     fid = frame_id(job.index)
@@ -138,6 +142,8 @@ def make_frame(job: Job) -> str:
     write_label(training / "label_2" / f"{fid}.txt", objects)
     meta = meta_io.world_to_meta(world, spec_to_dict(job.spec), truths, counts, lidar_info)
     atomic_write_text(meta_path, dump_json(meta))
+    lidar_files = [info_path(training, fid)] if section is not None else []
+    _WRITE_BEHIND.written(frame_files(training, fid, section is not None) + lidar_files + [meta_path])
     return fid
 
 

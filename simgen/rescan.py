@@ -15,7 +15,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from kitti.derived import claim_output, dump_json, meta_with_lidar, mirror_dataset
-from kitti.io import atomic_write_text
+from kitti.io import WriteBehind, atomic_write_text
 from kitti.jobs import Backend, InProcess
 from kitti.velodyne_info import info_path, velodyne_path
 
@@ -74,6 +74,9 @@ class RescanJob:
     outputs: tuple[RescanOutput, ...]
 
 
+_WRITE_BEHIND = WriteBehind()  # one per process: each worker releases what it wrote
+
+
 def _complete(dst: Path, fid: str) -> bool:
     """A frame is done once its meta, .bin and side file exist (meta is written last)."""
     return ((dst / "meta" / f"{fid}.json").exists() and velodyne_path(dst, fid).exists()
@@ -107,8 +110,9 @@ def rescan_frame(job: RescanJob) -> str:
         spec = preset(lidar.preset, beams=lidar.beams, max_range=lidar.max_range)
         s = scan(_as_seen(world, out.request.weather), spec, seed, target=targets.get(spec))
         write_scan(out.dst, job.fid, s)
-        atomic_write_text(out.dst / "meta" / f"{job.fid}.json",
-                          dump_json(meta_with_lidar(meta, s.point_counts(), out.request.record())))
+        meta_path = out.dst / "meta" / f"{job.fid}.json"
+        atomic_write_text(meta_path, dump_json(meta_with_lidar(meta, s.point_counts(), out.request.record())))
+        _WRITE_BEHIND.written([velodyne_path(out.dst, job.fid), info_path(out.dst, job.fid), meta_path])
     return job.fid
 
 

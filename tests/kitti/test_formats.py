@@ -196,3 +196,55 @@ def test_a_truncated_image_is_named(tmp_path):
     for read in (ds.image, ds.image_size):
         with pytest.raises(KittiFormatError, match=r"000000\.png: cannot be read as an image"):
             read("000000")
+
+
+def _resident_pages(path) -> int:
+    """Pages of `path` in the page cache (mincore(2) over a mapping of the file)."""
+    import ctypes
+    import mmap
+    import os
+
+    libc = ctypes.CDLL(None, use_errno=True)
+    libc.mincore.argtypes = [ctypes.c_void_p, ctypes.c_size_t, ctypes.c_void_p]
+    size = os.path.getsize(path)
+    with open(path, "r+b") as f, mmap.mmap(f.fileno(), size) as m:
+        buf = ctypes.c_char.from_buffer(m)
+        vec = (ctypes.c_ubyte * ((size + mmap.PAGESIZE - 1) // mmap.PAGESIZE))()
+        try:
+            if libc.mincore(ctypes.addressof(buf), size, vec) != 0:
+                pytest.skip(f"mincore failed: errno {ctypes.get_errno()}")
+            return sum(v & 1 for v in vec)
+        finally:
+            del buf
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "posix_fadvise"), reason="no posix_fadvise")
+def test_write_behind_lets_a_batch_go_at_the_next(tmp_path):
+    """Handed over dirty, a batch cannot leave the cache; written back since, it leaves at the
+    next batch's hand-over. A file that was never written is skipped; others stay cached."""
+    import os
+
+    from kitti.io import WriteBehind
+
+    def batch(name):
+        paths = [tmp_path / f"{name}{k}.bin" for k in range(2)]
+        for p in paths:
+            write_velodyne(p, np.ones((65536, 4), np.float32))  # 1 MiB, 256 pages
+        return paths
+
+    def written_back(paths):
+        for p in paths:
+            with open(p, "rb") as f:
+                os.fsync(f.fileno())
+
+    kept = batch("kept")
+    written_back(kept)
+    if min(_resident_pages(p) for p in kept) < 256:
+        pytest.skip("this file system does not keep written pages cached")
+    wb = WriteBehind()
+    first = batch("a")
+    wb.written(first + [tmp_path / "never_written.bin"])
+    written_back(first)
+    wb.written(batch("b"))
+    assert [_resident_pages(p) for p in first] == [0, 0]
+    assert [_resident_pages(p) for p in kept] == [256, 256]
