@@ -27,7 +27,6 @@ from kitti.jobs import Backend, InProcess
 from kitti.labels import write_label
 from kitti.planes import write_plane
 from kitti.splits import write_split
-from kitti.velodyne_info import info_path
 
 from . import meta as meta_io
 from .factors import factor_rng
@@ -127,9 +126,10 @@ def make_frame(job: Job) -> str:
                        world.sensor, look_rng, out.headroom, world.camera)
     counts = None
     lidar_info = None
+    scan_files = []
     if section is not None:
         scan = lidar.scan(world, lspec, lidar_seed(job.seed, job.index), target)
-        lidar.write_scan(training, fid, scan)
+        scan_files = lidar.write_scan(training, fid, scan)
         counts = scan.point_counts()
         lidar_info = lidar.sensor_record(section.preset, section.beams, section.max_range)
     objects, truths = derive(world, out.instance, job.spec.labels, counts)
@@ -142,8 +142,7 @@ def make_frame(job: Job) -> str:
     write_label(training / "label_2" / f"{fid}.txt", objects)
     meta = meta_io.world_to_meta(world, spec_to_dict(job.spec), truths, counts, lidar_info)
     atomic_write_text(meta_path, dump_json(meta))
-    lidar_files = [info_path(training, fid)] if section is not None else []
-    _WRITE_BEHIND.written(frame_files(training, fid, section is not None) + lidar_files + [meta_path])
+    _WRITE_BEHIND.written(frame_files(training, fid, False) + scan_files + [meta_path])
     return fid
 
 

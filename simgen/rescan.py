@@ -109,10 +109,10 @@ def rescan_frame(job: RescanJob) -> str:
         lidar = out.request.lidar
         spec = preset(lidar.preset, beams=lidar.beams, max_range=lidar.max_range)
         s = scan(_as_seen(world, out.request.weather), spec, seed, target=targets.get(spec))
-        write_scan(out.dst, job.fid, s)
+        scan_files = write_scan(out.dst, job.fid, s)
         meta_path = out.dst / "meta" / f"{job.fid}.json"
         atomic_write_text(meta_path, dump_json(meta_with_lidar(meta, s.point_counts(), out.request.record())))
-        _WRITE_BEHIND.written([velodyne_path(out.dst, job.fid), info_path(out.dst, job.fid), meta_path])
+        _WRITE_BEHIND.written([*scan_files, meta_path])
     return job.fid
 
 

@@ -10,11 +10,12 @@ from kitti.velodyne_info import INFO_FIELDS, info_path, read_scan_info, velodyne
 from .scan import LidarScan
 
 
-def write_scan(training_dir: str | Path, frame_id: str | int, scan: LidarScan) -> None:
-    """velodyne/<id>.bin and velodyne_info/<id>.npz, each written atomically."""
-    write_velodyne(velodyne_path(training_dir, frame_id), scan.points)
-    write_scan_info(info_path(training_dir, frame_id),
-                    {k: getattr(scan, k) for k in INFO_FIELDS})
+def write_scan(training_dir: str | Path, frame_id: str | int, scan: LidarScan) -> list[Path]:
+    """velodyne/<id>.bin and velodyne_info/<id>.npz, each written atomically; their paths."""
+    paths = [velodyne_path(training_dir, frame_id), info_path(training_dir, frame_id)]
+    write_velodyne(paths[0], scan.points)
+    write_scan_info(paths[1], {k: getattr(scan, k) for k in INFO_FIELDS})
+    return paths
 
 
 def read_scan(training_dir: str | Path, frame_id: str | int) -> LidarScan:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import pytest
 
@@ -202,7 +204,6 @@ def _resident_pages(path) -> int:
     """Pages of `path` in the page cache (mincore(2) over a mapping of the file)."""
     import ctypes
     import mmap
-    import os
 
     libc = ctypes.CDLL(None, use_errno=True)
     libc.mincore.argtypes = [ctypes.c_void_p, ctypes.c_size_t, ctypes.c_void_p]
@@ -218,12 +219,10 @@ def _resident_pages(path) -> int:
             del buf
 
 
-@pytest.mark.skipif(not hasattr(__import__("os"), "posix_fadvise"), reason="no posix_fadvise")
+@pytest.mark.skipif(not hasattr(os, "posix_fadvise"), reason="no posix_fadvise")
 def test_write_behind_lets_a_batch_go_at_the_next(tmp_path):
-    """Handed over dirty, a batch cannot leave the cache; written back since, it leaves at the
-    next batch's hand-over. A file that was never written is skipped; others stay cached."""
-    import os
-
+    """A batch handed over leaves the cache at the next batch's hand-over, written back by then
+    (pages still dirty cannot leave); a file that was never written is skipped; others stay."""
     from kitti.io import WriteBehind
 
     def batch(name):

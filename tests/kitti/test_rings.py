@@ -140,7 +140,8 @@ def test_ring_recovery_falls_back_to_elevation_clustering():
 
 
 def test_side_file_round_trip_and_same_bytes(tmp_path, hdl64_scan):
-    write_scan(tmp_path / "a", 3, hdl64_scan)
+    assert write_scan(tmp_path / "a", 3, hdl64_scan) == [velodyne_path(tmp_path / "a", 3),
+                                                         info_path(tmp_path / "a", 3)]
     write_scan(tmp_path / "b", "000003", hdl64_scan)
     for f in (velodyne_path, info_path):
         assert f(tmp_path / "a", 3).read_bytes() == f(tmp_path / "b", 3).read_bytes()
